@@ -1,0 +1,193 @@
+"""The command line: `ata run`, `ata check`, `ata plugins`. Thin: parse, build a session, call
+the library, render."""
+
+from __future__ import annotations
+
+import functools
+import sys
+from pathlib import Path
+from typing import Callable, List, Optional
+
+import typer
+from rich.console import Console
+from rich.progress import (BarColumn, Progress, ProgressColumn, TaskProgressColumn,
+                           TextColumn, TimeElapsedColumn, TimeRemainingColumn)
+from rich.table import Table
+from rich.text import Text
+
+from ata import __version__
+
+app = typer.Typer(add_completion=False, no_args_is_help=True,
+                  help="ATA: adaptive task allocation in multi-human multi-robot teams.")
+console = Console()
+err_console = Console(stderr=True)
+
+SetOption = typer.Option(None, "--set", "-s", metavar="TABLE.KEY=VALUE",
+                         help="Override a mission key, e.g. --set mission.seed=3 (repeatable).")
+PluginsOption = typer.Option(None, "--plugins", metavar="NAME[,NAME]",
+                             help="Optional plugins to load, comma-separated.")
+
+
+class SpeedColumn(ProgressColumn):
+    """Scenario-epochs simulated per second."""
+
+    def render(self, task) -> Text:
+        return Text(f"{task.speed or 0:,.0f} scenario-epochs/s", style="cyan")
+
+
+def user_errors(func: Callable) -> Callable:
+    """Turn bad input into one clear message and exit status 2, without a traceback."""
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        import pluggy
+
+        from ata.core.errors import MissionError
+        try:
+            return func(*args, **kwargs)
+        except MissionError as exc:
+            err_console.print(f"[bold red]error:[/] {exc}", highlight=False, markup=True)
+            raise typer.Exit(2) from None
+        except pluggy.PluginValidationError as exc:
+            err_console.print(f"[bold red]error:[/] a plugin failed validation: {exc}",
+                              highlight=False)
+            raise typer.Exit(2) from None
+
+    return wrapper
+
+
+def _split(plugins: Optional[str]) -> list[str]:
+    return [p.strip() for p in (plugins or "").split(",") if p.strip()]
+
+
+def _version_callback(value: bool) -> None:
+    if value:
+        console.print(f"ata {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def main(version: bool = typer.Option(False, "--version", callback=_version_callback,
+                                      is_eager=True, help="Show the version and exit.")) -> None:
+    """ATA: adaptive task allocation in multi-human multi-robot teams."""
+
+
+@app.command()
+@user_errors
+def run(mission: Optional[str] = typer.Argument(
+            None, help="Mission file (TOML). Default: the built-in mission, setting (a), "
+                       "medium uncertainty."),
+        set_: Optional[List[str]] = SetOption,
+        plugins: Optional[str] = PluginsOption,
+        out: Optional[Path] = typer.Option(None, "--out", "-o",
+                                           help="Run folder (default: runs/NAME-TIME)."),
+        workers: Optional[int] = typer.Option(None, "--workers", "-w", min=1,
+                                              help="Worker processes (default: the mission's)."),
+        quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar.")) -> None:
+    """Run a mission and print its summary; write results beside the resolved mission."""
+    from ata.core import runner
+
+    session = runner.load_session(mission, set_ or [], _split(plugins))
+    m = session.mission
+    total = m.settings.scenarios * m.clock.n_epochs
+    columns = [TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
+               SpeedColumn(), TimeElapsedColumn(), TimeRemainingColumn()]
+    with Progress(*columns, console=err_console, disable=quiet, transient=False) as progress:
+        task = progress.add_task(f"{m.settings.name}: {m.settings.scenarios} scenarios",
+                                 total=total)
+        result = runner.run_mission(session, progress=lambda n: progress.advance(task, n),
+                                    workers=workers)
+    out_dir = runner.write_run(out or runner.default_out_dir(m), session, result)
+    render_summary(session, result)
+    console.print(f"results: {out_dir}")
+
+
+def render_summary(session, result) -> None:
+    """The summary table of a run."""
+    from ata.core.runner import summarize
+
+    m, s = session.mission, summarize(result)
+    slots = m.slots
+    table = Table(title=f"{m.settings.name}: setting {m.settings.setting} "
+                        f"({m.sizes.humans} humans, {m.sizes.robots} robots, {m.sizes.tasks} POIs), "
+                        f"{m.settings.uncertainty} uncertainty, seed {m.settings.seed}")
+    table.add_column("method")
+    table.add_column("scenarios", justify="right")
+    table.add_column("total team performance (95% CI)", justify="right")
+    table.add_column("fraction of U", justify="right")
+    table.add_column("POIs classified", justify="right")
+    table.add_column("reallocations", justify="right")
+    table.add_column("wall time", justify="right")
+    method = f"{slots.initial} / {slots.condition} / {slots.reallocation}"
+    table.add_row(method, str(s["scenarios"]),
+                  f"{s['score_mean']:.1f} ± {s['score_ci95']:.1f}",
+                  f"{s['fraction_of_u']:.3f}",
+                  f"{100 * s.get('classified_share_mean', float('nan')):.1f}%",
+                  f"{s['reallocations_mean']:.2f}", f"{s['wall_s']:.1f} s")
+    console.print(table)
+
+
+@app.command()
+@user_errors
+def check(mission: str = typer.Argument(..., help="Mission file (TOML)."),
+          set_: Optional[List[str]] = SetOption,
+          plugins: Optional[str] = PluginsOption,
+          show: bool = typer.Option(False, "--show", help="Print the resolved mission.")) -> None:
+    """Validate a mission file without running it."""
+    from ata.core import runner
+    from ata.core.kernel import Simulation
+
+    session = runner.load_session(mission, set_ or [], _split(plugins))
+    # build the components once, on one scenario: a component that cannot fill its slot fails
+    Simulation(session.mission.replace(scenarios=1), session.registry, [0])
+    m = session.mission
+    console.print(f"[green]ok[/]: {mission}: setting {m.settings.setting} "
+                  f"({m.sizes.humans} humans, {m.sizes.robots} robots, {m.sizes.tasks} POIs), "
+                  f"{m.settings.scenarios} scenarios, {m.settings.uncertainty} uncertainty "
+                  f"(fatigue variance {m.fatigue_variance}, event probability "
+                  f"{m.event_probability})", highlight=False)
+    if show:
+        console.print(m.to_toml(), highlight=False, markup=False)
+
+
+@app.command()
+@user_errors
+def plugins(verbose: bool = typer.Option(False, "--verbose", "-v",
+                                         help="Also list each component's settings."),
+            optional: Optional[str] = PluginsOption) -> None:
+    """List every plugin, its version and the components it registers."""
+    from ata.core.registry import (OPTIONAL_PLUGINS, collect_components, get_plugin_manager,
+                                   plugin_version)
+    from ata.core.settings import describe
+
+    pm = get_plugin_manager(optional=_split(optional))
+    registry = collect_components(pm)
+    table = Table(title="ata plugins")
+    table.add_column("plugin")
+    table.add_column("version")
+    table.add_column("components")
+    table.add_column("hooks")
+    for name, plugin in sorted(pm.list_name_plugin(), key=lambda x: x[0]):
+        comps = [f"{c.kind}:{c.name}" for c in registry.components.values() if c.plugin == name]
+        hooks = ", ".join(sorted(h.name for h in pm.get_hookcallers(plugin) or []))
+        table.add_row(name, plugin_version(pm, plugin), "\n".join(comps) or "-", hooks)
+    console.print(table)
+    loaded = {pm.get_name(p) for p in pm.get_plugins()}
+    missing = [n for n, mod in OPTIONAL_PLUGINS.items() if mod not in loaded]
+    if missing:
+        console.print(f"optional plugins not loaded (use --plugins): {', '.join(missing)}")
+    if verbose:
+        for info in sorted(registry.components.values(), key=lambda c: (c.kind, c.name)):
+            cls = getattr(info.factory, "Settings", None)
+            sub = Table(title=f"[{info.name}] ({info.kind}, from {info.plugin})", title_justify="left")
+            sub.add_column("key")
+            sub.add_column("type")
+            sub.add_column("default")
+            sub.add_column("meaning")
+            for key, tp, default, text in (describe(cls) if cls else []):
+                sub.add_row(key, tp, repr(default), text)
+            console.print(sub)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(app())

@@ -1,0 +1,1 @@
+"""The small core: kernel, state, mission files, registry, random numbers."""

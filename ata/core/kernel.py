@@ -1,0 +1,183 @@
+"""The simulation kernel: builds a batch's components, then calls their hooks phase by phase.
+
+It knows the clock (ticks, decision epochs, horizon), the allocation it must keep legal, and the
+record it must keep; it knows nothing of humans, robots or POIs. One call of each phase hook
+serves the whole batch. A component's exception propagates: nothing is swallowed.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, Sequence
+
+import numpy as np
+import pluggy
+
+from ata import hookspecs
+from ata.core.errors import MissionError
+from ata.core.mission import SLOT_KINDS, Mission
+from ata.core.registry import Register
+from ata.core.rng import BatchRNG
+from ata.core.state import Allocation, DecisionContext, EpisodeRecord, Observation, SimState
+
+SLOT_HOOKS = {"routing": "ata_next_targets", "initial": "ata_initial_allocation",
+              "condition": "ata_should_reallocate", "reallocation": "ata_reallocate"}
+"""Single-choice slots and the hook called on the chosen component alone."""
+
+
+def build_component(registry: Register, mission: Mission, kind: str, name: str) -> Any:
+    """Create one component instance from its factory and its resolved settings."""
+    info = registry.get(kind, name, "[components]")
+    settings = mission.component_settings.get(name)
+    component = info.factory(settings, mission)
+    try:
+        component.component_name = name
+    except AttributeError:
+        pass
+    return component
+
+
+class Simulation:
+    """One batch of scenarios of a mission, ready to run.
+
+    :param scenario_ids: the global indices of the batch's scenarios; scenario i's numbers
+        depend on (seed, i) alone, so any batching gives the same per-scenario results.
+    :param overrides: slot -> component instance, to run a component not built from the
+        registry (a policy under training, a test double).
+    """
+
+    def __init__(self, mission: Mission, registry: Register, scenario_ids: Sequence[int],
+                 *, trace: bool = False, overrides: dict[str, Any] | None = None):
+        self.mission = mission
+        rng = BatchRNG(mission.settings.seed, np.asarray(scenario_ids))
+        self.sim = SimState(sizes=mission.sizes, clock=mission.clock, rng=rng,
+                            params={"mission": mission}, trace=trace)
+        self.pm = pluggy.PluginManager("ata")
+        self.pm.add_hookspecs(hookspecs)
+        overrides = overrides or {}
+        ordered: list[tuple[str, Any]] = []   # (plugin name, instance), in hook-call order
+        self.slot_component: dict[str, Any] = {}
+        for slot, kind in SLOT_KINDS.items():
+            value = getattr(mission.slots, slot)
+            names = value if isinstance(value, list) else [value]
+            for name in names:
+                if slot in overrides:
+                    component = overrides[slot]
+                else:
+                    component = build_component(registry, mission, kind, name)
+                ordered.append((f"{slot}:{name}", component))
+                if slot in SLOT_HOOKS:
+                    self.slot_component[slot] = component
+        # pluggy calls the last registered implementation first: register in reverse.
+        for plugin_name, component in reversed(ordered):
+            self.pm.register(component, name=plugin_name)
+        self.pm.check_pending()
+        self._callers: dict[str, Callable[..., Any]] = {}
+        everyone = [c for _, c in ordered]
+        for slot, hook_name in SLOT_HOOKS.items():
+            component = self.slot_component[slot]
+            impls = [i.plugin for i in getattr(self.pm.hook, hook_name).get_hookimpls()]
+            if not any(p is component for p in impls):
+                name = getattr(mission.slots, slot)
+                raise MissionError("[components]", slot, f"component {name!r} cannot fill this "
+                                   f"slot: it implements no {hook_name}", file=mission.source)
+            self._callers[slot] = self.pm.subset_hook_caller(
+                hook_name, remove_plugins=[c for c in everyone if c is not component])
+        self.sim.slot_call = self._callers
+        self.inherent: Observation | None = None
+
+    @property
+    def batch_size(self) -> int:
+        return self.sim.batch_size
+
+    def _context(self, observed: Observation | None, truth: Observation | None,
+                 recon: dict[str, np.ndarray]) -> DecisionContext:
+        sim = self.sim
+        realloc = truth.extras.get("reallocatable") if truth is not None else None
+        if realloc is None:
+            realloc = np.ones((sim.batch_size, sim.sizes.tasks), dtype=bool)
+        return DecisionContext(epoch=sim.epoch, time=sim.now, sizes=sim.sizes, clock=sim.clock,
+                               inherent=self.inherent, observed=observed, reconstructed=recon,
+                               previous=sim.allocation, reallocatable=realloc, rng=sim.rng,
+                               truth=truth, params=sim.params)
+
+    def _check(self, alloc: Any, slot: str) -> Allocation:
+        sim = self.sim
+        name = getattr(self.mission.slots, slot)
+        if not isinstance(alloc, Allocation):
+            raise TypeError(f"{slot} policy {name!r} returned {type(alloc).__name__}, "
+                            "not an Allocation")
+        shape = (sim.batch_size, sim.sizes.tasks)
+        for field, low, high in (("robot", 0, sim.sizes.robots), ("navigator", -1, sim.sizes.humans),
+                                 ("classifier", -1, sim.sizes.humans)):
+            arr = getattr(alloc, field)
+            if arr.shape != shape:
+                raise ValueError(f"{slot} policy {name!r}: {field} has shape {arr.shape}, "
+                                 f"expected {shape}")
+            if arr.size and (arr.min() < low or arr.max() >= high):
+                raise ValueError(f"{slot} policy {name!r}: {field} values must lie in "
+                                 f"[{low}, {high})")
+        return Allocation(alloc.robot.astype(np.int64), alloc.navigator.astype(np.int64),
+                          alloc.classifier.astype(np.int64))
+
+    def step_epoch(self) -> None:
+        """Run one decision epoch: observe, inject, reconstruct, decide, then its ticks."""
+        sim, hook, clock = self.sim, self.pm.hook, self.sim.clock
+        k = sim.epoch
+        sim.now = k * clock.epoch_s
+        truth = Observation()
+        hook.ata_observe(sim=sim, obs=truth)
+        observed = truth.copy()
+        hook.ata_inject(sim=sim, obs=observed)
+        recon: dict[str, np.ndarray] = {}
+        hook.ata_reconstruct(sim=sim, obs=observed, inherent=self.inherent, out=recon)
+        ctx = self._context(observed, truth, recon)
+        self.last_context = ctx
+        if k == 0:
+            alloc = self._check(self._callers["initial"](ctx=ctx), "initial")
+            sim.allocation = alloc
+            sim.log("allocate", k, int(sim.batch_size))
+            hook.ata_allocation_changed(sim=sim, changed=np.ones(alloc.robot.shape, dtype=bool))
+        else:
+            active = np.asarray(self._callers["condition"](ctx=ctx), dtype=bool)
+            if active.shape != (sim.batch_size,):
+                raise ValueError(f"condition policy {self.mission.slots.condition!r} returned "
+                                 f"shape {active.shape}, expected ({sim.batch_size},)")
+            if active.any():
+                proposed = self._check(self._callers["reallocation"](ctx=ctx, active=active),
+                                       "reallocation")
+                allowed = active[:, None] & ctx.reallocatable
+                previous = sim.allocation
+                merged = proposed.where(allowed, previous)
+                changed = ((merged.robot != previous.robot) | (merged.navigator != previous.navigator)
+                           | (merged.classifier != previous.classifier))
+                sim.allocation = merged
+                sim.record.reallocated[:, k] = active
+                sim.log("reallocate", k, int(active.sum()), int(changed.sum()))
+                if changed.any():
+                    hook.ata_allocation_changed(sim=sim, changed=changed)
+        sim.record.allocations[:, k] = sim.allocation.stack()
+        for j in range(clock.ticks_per_epoch):
+            sim.tick = k * clock.ticks_per_epoch + j
+            t0 = sim.tick * clock.tick_s
+            hook.ata_advance(sim=sim, t0=t0, t1=t0 + clock.tick_s)
+        hook.ata_epoch_end(sim=sim, epoch=k)
+        sim.epoch = k + 1
+        sim.now = sim.epoch * clock.epoch_s
+
+    def reset(self) -> Observation:
+        """Sample the batch and collect the inherent information I."""
+        hook = self.pm.hook
+        hook.ata_setup(sim=self.sim)
+        self.inherent = Observation()
+        hook.ata_inherent(sim=self.sim, inherent=self.inherent)
+        return self.inherent
+
+    def run(self, on_epoch: Callable[[int], None] | None = None) -> EpisodeRecord:
+        """Run the whole episode for the batch and return its record."""
+        self.reset()
+        for _ in range(self.sim.clock.n_epochs):
+            self.step_epoch()
+            if on_epoch is not None:
+                on_epoch(self.sim.epoch)
+        self.pm.hook.ata_episode_end(sim=self.sim)
+        return self.sim.record

@@ -1,0 +1,265 @@
+"""Mission files: TOML in, validated and fully resolved mission out.
+
+Layout: ``[mission]`` (team, seed, scenarios, clock, uncertainty), ``[components]`` (the slot
+table naming one component per slot), and one table per chosen component, named after it, for
+its settings. ``--set table.key=value`` overrides any key before validation.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import tomli_w
+
+from ata.core.errors import MissionError
+from ata.core.registry import Register
+from ata.core.settings import build_settings, param, settings_dict
+from ata.core.state import Clock, TeamSize
+
+TEAM_SETTINGS = {"a": TeamSize(humans=6, robots=8, tasks=60),
+                 "b": TeamSize(humans=12, robots=16, tasks=130)}
+"""The paper's two team settings."""
+
+UNCERTAINTY_LEVELS = {"none": (0.0, 0.0), "low": (0.05, 0.1), "medium": (0.1, 0.2),
+                      "high": (0.2, 0.4)}
+"""(fatigue noise variance, event probability) per level; MODEL.md section 6."""
+
+
+@dataclass
+class MissionSettings:
+    """The ``[mission]`` table."""
+
+    name: str = param("mission", help="a label for the run")
+    setting: str = param("a", choices=("a", "b", "custom"),
+                         help="team setting: a (6/8/60), b (12/16/130) or custom")
+    humans: int | None = param(None, min=1, max=1000, help="number of humans (overrides setting)")
+    robots: int | None = param(None, min=1, max=1000, help="number of robots (overrides setting)")
+    tasks: int | None = param(None, min=1, max=10000, help="number of POIs (overrides setting)")
+    seed: int = param(0, min=0, max=2**63 - 1, help="root seed: fixes every scenario")
+    scenarios: int = param(100, min=1, max=10_000_000, help="number of scenarios to run")
+    first_scenario: int = param(0, min=0, help="index of the first scenario (held-out ranges)")
+    batch_size: int = param(500, min=1, max=100_000, help="scenarios stepped together")
+    workers: int = param(1, min=1, max=256, help="worker processes for `ata run`")
+    horizon_s: float = param(1800.0, min=1.0, help="mission length in seconds")
+    epoch_s: float = param(60.0, min=1.0, help="decision epoch in seconds")
+    tick_s: float = param(10.0, min=0.1, help="kernel tick in seconds")
+    uncertainty: str = param("medium", choices=tuple(UNCERTAINTY_LEVELS) + ("custom",),
+                             help="uncertainty level: none, low, medium, high, or custom")
+    fatigue_variance: float | None = param(None, min=0.0, max=10.0,
+                                           help="fatigue noise variance (overrides the level)")
+    event_probability: float | None = param(None, min=0.0, max=1.0,
+                                            help="event probability p (overrides the level)")
+    plugins: list[str] = param([], help="optional plugins to load (e.g. ctr, aux)")
+
+
+@dataclass
+class ComponentSlots:
+    """The ``[components]`` table: which component fills each slot."""
+
+    task_model: str = param("poi", help="POIs: positions, kinds, difficulties, scoring")
+    human_model: str = param("human", help="human performance, fatigue, workload, SA")
+    robot_model: str = param("robot", help="robot motion, image quality, capture, onboard P_rc")
+    routing: str = param("nearest", help="order in which a robot visits its POIs")
+    injectors: list[str] = param(["fatigue_noise", "attribute_change", "robot_failure",
+                                  "latency"], help="uncertainty injectors, applied in order")
+    reconstructors: list[str] = param(["identity"], help="state reconstructors")
+    initial: str = param("greedy", help="initial allocation policy (t = 0)")
+    condition: str = param("on_event", help="condition policy: when to reallocate")
+    reallocation: str = param("greedy", help="reallocation policy: how to reallocate")
+
+
+SLOT_KINDS = {"task_model": "task_model", "human_model": "human_model",
+              "robot_model": "robot_model", "routing": "routing", "injectors": "injector",
+              "reconstructors": "reconstructor", "initial": "policy", "condition": "condition",
+              "reallocation": "policy"}
+
+
+@dataclass
+class Mission:
+    """A validated mission with every default filled in."""
+
+    settings: MissionSettings
+    slots: ComponentSlots
+    component_settings: dict[str, Any]   # component name -> its Settings instance (or None)
+    source: str = "<built-in>"
+
+    @property
+    def sizes(self) -> TeamSize:
+        s = self.settings
+        return TeamSize(humans=s.humans, robots=s.robots, tasks=s.tasks)
+
+    @property
+    def clock(self) -> Clock:
+        s = self.settings
+        return Clock(tick_s=s.tick_s, epoch_s=s.epoch_s, horizon_s=s.horizon_s)
+
+    @property
+    def fatigue_variance(self) -> float:
+        return float(self.settings.fatigue_variance)
+
+    @property
+    def event_probability(self) -> float:
+        return float(self.settings.event_probability)
+
+    def chosen(self) -> list[tuple[str, str]]:
+        """(kind, name) of every chosen component, in mission (and hook-call) order."""
+        out = []
+        for slot, kind in SLOT_KINDS.items():
+            value = getattr(self.slots, slot)
+            for name in (value if isinstance(value, list) else [value]):
+                if (kind, name) not in out:
+                    out.append((kind, name))
+        return out
+
+    def resolved(self) -> dict[str, Any]:
+        """The full mission as a TOML-ready dict: every key, every default."""
+        out: dict[str, Any] = {"mission": settings_dict(self.settings),
+                               "components": settings_dict(self.slots)}
+        for name, st in self.component_settings.items():
+            out[name] = settings_dict(st) if st is not None else {}
+        return out
+
+    def to_toml(self) -> str:
+        return tomli_w.dumps(self.resolved())
+
+    def replace(self, **mission_keys: Any) -> "Mission":
+        """A copy with some ``[mission]`` keys changed (no re-validation of components)."""
+        m = copy.deepcopy(self)
+        m.settings = dataclasses.replace(m.settings, **mission_keys)
+        return m
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """Parse a mission file, turning a missing file or a syntax error into a MissionError."""
+    p = Path(path)
+    if not p.exists():
+        raise MissionError("", None, "no such file", file=str(path))
+    if p.is_dir():
+        raise MissionError("", None, "is a directory, not a mission file", file=str(path))
+    try:
+        return tomllib.loads(p.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise MissionError("", None, f"TOML syntax error: {exc}", file=str(path)) from None
+    except UnicodeDecodeError:
+        raise MissionError("", None, "not a UTF-8 text file", file=str(path)) from None
+
+
+def parse_override(text: str) -> tuple[list[str], Any]:
+    """'table.key=value' -> (['table', 'key'], value parsed as a TOML value, else a string)."""
+    if "=" not in text:
+        raise MissionError("--set", None, f"{text!r} is not of the form table.key=value")
+    key, raw = text.split("=", 1)
+    path = [k.strip() for k in key.strip().split(".")]
+    if len(path) < 2 or not all(path):
+        raise MissionError("--set", None, f"{key!r} must name a table and a key, e.g. "
+                           "mission.seed=3")
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    return path, value
+
+
+def apply_overrides(raw: dict[str, Any], overrides: list[str]) -> dict[str, Any]:
+    """A copy of the raw mission dict with ``--set`` overrides applied."""
+    out = copy.deepcopy(raw)
+    for text in overrides:
+        path, value = parse_override(text)
+        node = out
+        for part in path[:-1]:
+            node = node.setdefault(part, {})
+            if not isinstance(node, dict):
+                raise MissionError("--set", text, f"{part!r} is not a table")
+        node[path[-1]] = value
+    return out
+
+
+def requested_plugins(raw: dict[str, Any]) -> list[str]:
+    """The optional plugins a raw mission asks for, before full validation."""
+    plugins = raw.get("mission", {}).get("plugins", []) if isinstance(raw.get("mission"), dict) \
+        else []
+    return [p for p in plugins if isinstance(p, str)] if isinstance(plugins, list) else []
+
+
+def validate(raw: dict[str, Any], registry: Register, source: str = "<built-in>") -> Mission:
+    """Check every table and key of a raw mission dict and resolve all defaults."""
+    try:
+        return _validate(raw, registry, source)
+    except MissionError as exc:
+        raise exc.with_file(source) from None
+
+
+def _validate(raw: dict[str, Any], registry: Register, source: str) -> Mission:
+    for table in ("mission", "components"):
+        if table in raw and not isinstance(raw[table], dict):
+            raise MissionError(f"[{table}]", None, "must be a table")
+    settings = build_settings(MissionSettings, raw.get("mission"), "[mission]")
+    if settings.setting == "custom":
+        missing = [k for k in ("humans", "robots", "tasks") if getattr(settings, k) is None]
+        if missing:
+            raise MissionError("[mission]", missing[0], "is required when setting = 'custom'")
+    base = TEAM_SETTINGS.get(settings.setting)
+    for k in ("humans", "robots", "tasks"):
+        if getattr(settings, k) is None:
+            setattr(settings, k, getattr(base, k))
+    level = UNCERTAINTY_LEVELS.get(settings.uncertainty)
+    if level is None and (settings.fatigue_variance is None or settings.event_probability is None):
+        raise MissionError("[mission]", "uncertainty", "'custom' needs fatigue_variance and "
+                           "event_probability in [mission]")
+    if settings.fatigue_variance is None:
+        settings.fatigue_variance = level[0]
+    if settings.event_probability is None:
+        settings.event_probability = level[1]
+    _check_clock(settings)
+
+    slots = build_settings(ComponentSlots, raw.get("components"), "[components]")
+    chosen: dict[str, Any] = {}
+    for slot, kind in SLOT_KINDS.items():
+        value = getattr(slots, slot)
+        names = value if isinstance(value, list) else [value]
+        if len(set(names)) != len(names):
+            raise MissionError("[components]", slot, "lists a component twice")
+        for name in names:
+            info = registry.get(kind, name, f"[components] key {slot!r}")
+            chosen.setdefault(name, info)
+
+    known_tables = {"mission", "components", *chosen}
+    for table in raw:
+        if table not in known_tables:
+            raise MissionError(f"[{table}]", None, "names no chosen component; tables allowed: "
+                               + ", ".join(f"[{t}]" for t in sorted(known_tables)))
+    component_settings: dict[str, Any] = {}
+    for name, info in chosen.items():
+        table = raw.get(name)
+        if table is not None and not isinstance(table, dict):
+            raise MissionError(f"[{name}]", None, "must be a table")
+        cls = getattr(info.factory, "Settings", None)
+        if cls is None:
+            if table:
+                raise MissionError(f"[{name}]", next(iter(table)), "this component takes no "
+                                   "settings")
+            component_settings[name] = None
+        else:
+            component_settings[name] = build_settings(cls, table, f"[{name}]")
+    return Mission(settings=settings, slots=slots, component_settings=component_settings,
+                   source=source)
+
+
+def _check_clock(s: MissionSettings) -> None:
+    ratio = s.epoch_s / s.tick_s
+    if abs(ratio - round(ratio)) > 1e-9:
+        raise MissionError("[mission]", "epoch_s", f"{s.epoch_s} is not a whole number of "
+                           f"ticks of {s.tick_s} s")
+    ratio = s.horizon_s / s.epoch_s
+    if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+        raise MissionError("[mission]", "horizon_s", f"{s.horizon_s} is not a whole number "
+                           f"of epochs of {s.epoch_s} s")
+
+
+def write_toml(data: dict[str, Any], path: str | Path) -> None:
+    Path(path).write_text(tomli_w.dumps(data), encoding="utf-8")

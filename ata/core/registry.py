@@ -1,0 +1,142 @@
+"""Plugin manager factory and the registry of components that plugins contribute by name.
+
+Start-up order, fixed and readable: hook specs, built-in plugins, optional plugins named by the
+user, entry points of the ``ata`` group, then ``check_pending()`` so that a misspelt hook name
+fails here rather than being ignored.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+from dataclasses import dataclass
+from importlib import metadata
+from typing import Any, Callable, Iterable
+
+import pluggy
+
+from ata import hookspecs
+from ata.core.errors import MissionError
+
+KINDS = ("task_model", "human_model", "robot_model", "routing", "injector", "reconstructor",
+         "policy", "condition")
+"""Component kinds. A ``policy`` may fill the initial and the reallocation slot."""
+
+BUILTIN_PLUGINS = (
+    "ata.plugins.tasks",
+    "ata.plugins.humans",
+    "ata.plugins.robots",
+    "ata.plugins.routing",
+    "ata.plugins.uncertainty.fatigue_noise",
+    "ata.plugins.uncertainty.attribute_change",
+    "ata.plugins.uncertainty.robot_failure",
+    "ata.plugins.uncertainty.latency",
+    "ata.plugins.reconstructors",
+    "ata.plugins.conditions",
+    "ata.plugins.policies.random_policy",
+    "ata.plugins.policies.greedy",
+)
+"""Default-tier plugins, always loaded."""
+
+OPTIONAL_PLUGINS: dict[str, str] = {}
+"""Optional-tier plugins (torch-heavy research parts), loaded only when named."""
+
+
+@dataclass(frozen=True)
+class ComponentInfo:
+    """One registered component."""
+
+    kind: str
+    name: str
+    factory: Callable[..., Any]
+    plugin: str          # the registering plugin's name
+    dist: str            # distribution name and version, "ata 0.1.0"
+
+
+class Register:
+    """The callable that ``ata_register_components`` receives; collects components by name."""
+
+    def __init__(self) -> None:
+        self.components: dict[tuple[str, str], ComponentInfo] = {}
+        self._plugin = "?"
+        self._dist = "?"
+
+    def __call__(self, kind: str, name: str, factory: Callable[..., Any]) -> None:
+        if kind not in KINDS:
+            raise ValueError(f"plugin {self._plugin}: unknown component kind {kind!r}; "
+                             f"kinds: {', '.join(KINDS)}")
+        # Names are unique across kinds: a component's settings table is named after it.
+        for (other_kind, other_name), info in self.components.items():
+            if other_name == name:
+                raise ValueError(f"plugin {self._plugin}: component name {name!r} is already "
+                                 f"registered ({other_kind}) by {info.plugin}")
+        key = (kind, name)
+        self.components[key] = ComponentInfo(kind, name, factory, self._plugin, self._dist)
+
+    def names(self, kind: str) -> list[str]:
+        return sorted(n for k, n in self.components if k == kind)
+
+    def get(self, kind: str, name: str, where: str) -> ComponentInfo:
+        try:
+            return self.components[(kind, name)]
+        except KeyError:
+            known = ", ".join(self.names(kind)) or "(none)"
+            hint = ""
+            if name in OPTIONAL_PLUGINS:
+                hint = f"; it comes with the optional plugin {name!r} (--plugins {name})"
+            raise MissionError(where, None, f"unknown {kind} {name!r}; registered: {known} "
+                               f"(see: ata plugins){hint}") from None
+
+
+def get_plugin_manager(*, optional: Iterable[str] = (), entry_points: bool = True,
+                       extra: Iterable[Any] = ()) -> pluggy.PluginManager:
+    """Build a fresh plugin manager: specs, built-ins, optional ones, entry points, extras."""
+    pm = pluggy.PluginManager("ata")
+    pm.add_hookspecs(hookspecs)
+    for module in BUILTIN_PLUGINS:
+        pm.register(importlib.import_module(module), name=module)
+    for name in optional:
+        if name not in OPTIONAL_PLUGINS:
+            known = ", ".join(sorted(OPTIONAL_PLUGINS)) or "(none yet)"
+            raise MissionError("--plugins", None, f"unknown optional plugin {name!r}; "
+                               f"available: {known}")
+        module = OPTIONAL_PLUGINS[name]
+        if pm.get_plugin(module) is None:
+            pm.register(importlib.import_module(module), name=module)
+    if entry_points:
+        pm.load_setuptools_entrypoints("ata")
+    for plugin in extra:
+        pm.register(plugin)
+    pm.check_pending()
+    if os.environ.get("ATA_TRACE_HOOKS"):
+        pm.trace.root.setwriter(lambda text: sys.stderr.write(text))
+        pm.enable_tracing()
+    return pm
+
+
+def plugin_version(pm: pluggy.PluginManager, plugin: Any) -> str:
+    """'dist version' of the package a plugin comes from ('ata x.y.z' for the built-ins)."""
+    for p, dist in pm.list_plugin_distinfo():
+        if p is plugin:
+            return f"{dist.project_name} {dist.version}"
+    module = getattr(plugin, "__name__", type(plugin).__module__)
+    top = module.split(".")[0]
+    try:
+        return f"{top} {metadata.version(top)}"
+    except metadata.PackageNotFoundError:
+        from ata import __version__
+        return f"{top} {__version__}" if top == "ata" else f"{top} (not installed)"
+
+
+def collect_components(pm: pluggy.PluginManager) -> Register:
+    """Ask every plugin for its components, remembering who registered what."""
+    register = Register()
+    for plugin in pm.get_plugins():
+        caller = pm.subset_hook_caller("ata_register_components",
+                                       remove_plugins=[p for p in pm.get_plugins()
+                                                       if p is not plugin])
+        register._plugin = pm.get_name(plugin) or repr(plugin)
+        register._dist = plugin_version(pm, plugin)
+        caller(register=register)
+    return register

@@ -1,0 +1,182 @@
+"""Running a mission: scenarios in batches (optionally in worker processes), per-scenario
+results, summary statistics, and the run folder that makes every number reproducible."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+import tomli_w
+
+from ata import __version__
+from ata.core import mission as mission_mod
+from ata.core.errors import MissionError
+from ata.core.kernel import Simulation
+from ata.core.mission import Mission
+from ata.core.registry import Register, collect_components, get_plugin_manager
+
+BUILTIN_MISSION = Path(__file__).resolve().parent.parent / "missions" / "default.toml"
+
+
+@dataclass
+class Session:
+    """A plugin manager, its component registry, and one validated mission."""
+
+    mission: Mission
+    registry: Register
+    pm: Any
+
+    def versions(self) -> dict[str, str]:
+        """'kind name' -> 'distribution version' of every chosen component."""
+        return {f"{kind} {name}": self.registry.get(kind, name, "").dist
+                for kind, name in self.mission.chosen()}
+
+
+def load_session(path: str | None = None, overrides: list[str] | None = None,
+                 plugins: list[str] | None = None, extra: tuple = ()) -> Session:
+    """Read (or take the built-in) mission, load the plugins it needs, and validate it."""
+    source = str(path) if path else str(BUILTIN_MISSION)
+    raw = mission_mod.read_toml(source)
+    try:
+        raw = mission_mod.apply_overrides(raw, overrides or [])
+    except MissionError as exc:
+        raise exc.with_file(source) from None
+    optional = list(dict.fromkeys((plugins or []) + mission_mod.requested_plugins(raw)))
+    if plugins:
+        raw.setdefault("mission", {})["plugins"] = optional
+    pm = get_plugin_manager(optional=optional, extra=extra)
+    registry = collect_components(pm)
+    mission = mission_mod.validate(raw, registry, source=source)
+    return Session(mission=mission, registry=registry, pm=pm)
+
+
+@dataclass
+class RunResult:
+    """Per-scenario results of a run, in scenario order."""
+
+    scenario: np.ndarray
+    total: np.ndarray
+    upper_bound: np.ndarray
+    reallocations: np.ndarray
+    metrics: dict[str, np.ndarray] = field(default_factory=dict)
+    wall_s: float = 0.0
+
+    def rows(self) -> list[dict[str, Any]]:
+        out = []
+        for i in range(self.scenario.size):
+            row = {"scenario": int(self.scenario[i]), "score": float(self.total[i]),
+                   "upper_bound": float(self.upper_bound[i]),
+                   "fraction_of_u": float(self.total[i] / self.upper_bound[i])
+                   if self.upper_bound[i] > 0 else float("nan"),
+                   "reallocations": int(self.reallocations[i])}
+            row.update({k: float(v[i]) for k, v in self.metrics.items()})
+            out.append(row)
+        return out
+
+
+def run_batch(mission: Mission, registry: Register, scenario_ids: np.ndarray,
+              on_epoch: Callable[[int], None] | None = None) -> dict[str, np.ndarray]:
+    """Simulate one batch and return its per-scenario arrays."""
+    sim = Simulation(mission, registry, scenario_ids)
+    record = sim.run(on_epoch=on_epoch)
+    out = {"scenario": np.asarray(scenario_ids), "total": record.total,
+           "upper_bound": record.upper_bound.copy(),
+           "reallocations": record.reallocated.sum(axis=1)}
+    out.update({f"m:{k}": np.asarray(v, dtype=float) for k, v in record.metrics.items()})
+    return out
+
+
+def _worker(args: tuple) -> dict[str, np.ndarray]:
+    mission, ids = args
+    pm = get_plugin_manager(optional=mission.settings.plugins)
+    return run_batch(mission, collect_components(pm), ids)
+
+
+def scenario_ids(mission: Mission) -> np.ndarray:
+    s = mission.settings
+    return s.first_scenario + np.arange(s.scenarios, dtype=np.int64)
+
+
+def run_mission(session: Session, progress: Callable[[int], None] | None = None,
+                workers: int | None = None) -> RunResult:
+    """Run every scenario of the mission; `progress(n)` is told of n more scenario-epochs done.
+
+    Results depend on (seed, scenario index) alone: any batch size or worker count gives the
+    same per-scenario numbers.
+    """
+    mission = session.mission
+    ids = scenario_ids(mission)
+    bs = mission.settings.batch_size
+    chunks = [ids[i:i + bs] for i in range(0, ids.size, bs)]
+    workers = workers or mission.settings.workers
+    t0 = time.perf_counter()
+    parts: list[dict[str, np.ndarray]] = []
+    n_epochs = mission.clock.n_epochs
+    if workers <= 1 or len(chunks) == 1:
+        for chunk in chunks:
+            tick = (lambda k, size=chunk.size: progress(size)) if progress else None
+            parts.append(run_batch(mission, session.registry, chunk, on_epoch=tick))
+    else:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            for part in pool.map(_worker, [(mission, c) for c in chunks]):
+                parts.append(part)
+                if progress is not None:
+                    progress(part["scenario"].size * n_epochs)
+    wall = time.perf_counter() - t0
+    merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    return RunResult(scenario=merged["scenario"], total=merged["total"],
+                     upper_bound=merged["upper_bound"], reallocations=merged["reallocations"],
+                     metrics={k[2:]: v for k, v in merged.items() if k.startswith("m:")},
+                     wall_s=wall)
+
+
+def mean_ci(values: np.ndarray, z: float = 1.959964) -> tuple[float, float]:
+    """Mean and the half-width of its normal-approximation 95% confidence interval."""
+    v = np.asarray(values, dtype=float)
+    if v.size < 2:
+        return float(v.mean()) if v.size else float("nan"), float("nan")
+    return float(v.mean()), float(z * v.std(ddof=1) / math.sqrt(v.size))
+
+
+def summarize(result: RunResult) -> dict[str, Any]:
+    """The headline numbers of a run."""
+    mean, half = mean_ci(result.total)
+    frac = result.total / np.where(result.upper_bound > 0, result.upper_bound, np.nan)
+    out = {"scenarios": int(result.scenario.size), "score_mean": mean, "score_ci95": half,
+           "upper_bound_mean": float(result.upper_bound.mean()),
+           "fraction_of_u": float(np.nanmean(frac)),
+           "reallocations_mean": float(result.reallocations.mean()),
+           "wall_s": result.wall_s}
+    for k, v in result.metrics.items():
+        out[f"{k}_mean"] = float(np.mean(v))
+    return out
+
+
+def write_run(out_dir: str | Path, session: Session, result: RunResult) -> Path:
+    """Write results.csv, summary.json, the resolved mission and the plugin versions."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = result.rows()
+    with open(out / "results.csv", "w", newline="", encoding="utf-8") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    (out / "summary.json").write_text(json.dumps(summarize(result), indent=2) + "\n")
+    (out / "mission.resolved.toml").write_text(session.mission.to_toml(), encoding="utf-8")
+    versions = {"ata": __version__, "components": session.versions()}
+    (out / "plugins.toml").write_text(tomli_w.dumps(versions), encoding="utf-8")
+    return out
+
+
+def default_out_dir(mission: Mission) -> Path:
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    base = Path(os.environ.get("ATA_RUNS", "runs"))
+    return base / f"{mission.settings.name}-{stamp}"

@@ -1,0 +1,232 @@
+"""The data the kernel passes between components: clock, entity tables, allocations, records.
+
+Every array has a leading scenario axis of length B. The kernel does not know what a human or
+a robot is: the models declare entity groups ("humans", "robots", "tasks") by name and fill
+them; policies read them by column name.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Iterable
+
+import numpy as np
+
+from ata.core.rng import BatchRNG
+
+
+@dataclass(frozen=True)
+class Clock:
+    """Kernel tick, decision epoch and horizon, in seconds."""
+
+    tick_s: float = 10.0
+    epoch_s: float = 60.0
+    horizon_s: float = 1800.0
+
+    @property
+    def ticks_per_epoch(self) -> int:
+        return int(round(self.epoch_s / self.tick_s))
+
+    @property
+    def n_epochs(self) -> int:
+        return int(round(self.horizon_s / self.epoch_s))
+
+    @property
+    def n_ticks(self) -> int:
+        return self.n_epochs * self.ticks_per_epoch
+
+
+@dataclass(frozen=True)
+class TeamSize:
+    """Numbers of humans, robots and tasks (POIs) in every scenario of a batch."""
+
+    humans: int
+    robots: int
+    tasks: int
+
+
+class EntityTable:
+    """Features of one kind of entity: an array (B, N, F) with named columns and a mask (B, N)."""
+
+    def __init__(self, names: Iterable[str], features: np.ndarray, mask: np.ndarray | None = None):
+        self.names: tuple[str, ...] = tuple(names)
+        if features.ndim != 3 or features.shape[2] != len(self.names):
+            raise ValueError(f"features must be (B, N, {len(self.names)}), got {features.shape}")
+        self.features = features
+        self.mask = np.ones(features.shape[:2], dtype=bool) if mask is None else mask
+        self._index = {n: i for i, n in enumerate(self.names)}
+
+    def index(self, name: str) -> int:
+        try:
+            return self._index[name]
+        except KeyError:
+            raise KeyError(f"no column {name!r}; columns: {', '.join(self.names)}") from None
+
+    def col(self, name: str) -> np.ndarray:
+        """A view (B, N) of one column; writing to it writes the table."""
+        return self.features[:, :, self.index(name)]
+
+    def set(self, name: str, values: np.ndarray) -> None:
+        self.features[:, :, self.index(name)] = values
+
+    def copy(self) -> "EntityTable":
+        return EntityTable(self.names, self.features.copy(), self.mask.copy())
+
+
+class Observation(dict):
+    """Entity tables by group name ("humans", "robots", "tasks"), plus named extra arrays."""
+
+    def __init__(self, *args: Any, **kwargs: Any):
+        super().__init__(*args, **kwargs)
+        self.extras: dict[str, np.ndarray] = {}
+
+    def add(self, group: str, names: Iterable[str], features: np.ndarray,
+            mask: np.ndarray | None = None) -> EntityTable:
+        table = EntityTable(names, features, mask)
+        self[group] = table
+        return table
+
+    def copy(self) -> "Observation":
+        out = Observation({k: v.copy() for k, v in self.items()})
+        out.extras = {k: v.copy() for k, v in self.extras.items()}
+        return out
+
+
+AUTO = -1
+"""Navigator value for autonomous driving."""
+ONBOARD = -1
+"""Classifier value for the robot's onboard detector."""
+
+
+@dataclass
+class Allocation:
+    """One (robot, navigator, classifier) triple per task: three int arrays of shape (B, P).
+
+    navigator is AUTO (-1) or a human index; classifier is ONBOARD (-1) or a human index.
+    """
+
+    robot: np.ndarray
+    navigator: np.ndarray
+    classifier: np.ndarray
+
+    def copy(self) -> "Allocation":
+        return Allocation(self.robot.copy(), self.navigator.copy(), self.classifier.copy())
+
+    def stack(self) -> np.ndarray:
+        """(B, P, 3) int array of the triples."""
+        return np.stack([self.robot, self.navigator, self.classifier], axis=-1)
+
+    @classmethod
+    def from_stack(cls, triples: np.ndarray) -> "Allocation":
+        t = np.asarray(triples, dtype=np.int64)
+        return cls(t[..., 0].copy(), t[..., 1].copy(), t[..., 2].copy())
+
+    def matrix(self, n_robots: int, n_humans: int) -> np.ndarray:
+        """The allocation matrix of MODEL.md section 3: one-hot rows, (B, P, R + (1+H) + (1+H))."""
+        B, P = self.robot.shape
+        width = n_robots + 2 * (1 + n_humans)
+        out = np.zeros((B, P, width), dtype=np.float32)
+        b, p = np.indices((B, P))
+        out[b, p, self.robot] = 1.0
+        out[b, p, n_robots + 1 + self.navigator] = 1.0
+        out[b, p, n_robots + (1 + n_humans) + 1 + self.classifier] = 1.0
+        return out
+
+    def where(self, mask: np.ndarray, other: "Allocation") -> "Allocation":
+        """Per task, this allocation where mask (B, P) holds, else other's."""
+        return Allocation(np.where(mask, self.robot, other.robot),
+                          np.where(mask, self.navigator, other.navigator),
+                          np.where(mask, self.classifier, other.classifier))
+
+
+def frobenius_change(a: Allocation, b: Allocation) -> np.ndarray:
+    """||A - B||_F of the two allocation matrices, per scenario (B,), without building them.
+
+    Each changed choice of a task flips two entries of a one-hot row by 1, adding 2 to the square.
+    """
+    changes = ((a.robot != b.robot).sum(1) + (a.navigator != b.navigator).sum(1)
+               + (a.classifier != b.classifier).sum(1))
+    return np.sqrt(2.0 * changes)
+
+
+@dataclass
+class EpisodeRecord:
+    """What the kernel keeps of an episode, enough to compute every reward of MODEL.md section 7."""
+
+    r_perf: np.ndarray                  # (B, T) points gained in each epoch
+    reallocated: np.ndarray             # (B, T) bool: a reallocation was made at epoch t
+    allocations: np.ndarray             # (B, T, P, 3) int16: the allocation in force during epoch t
+    upper_bound: np.ndarray             # (B,) the capacity-free upper bound U
+    metrics: dict[str, np.ndarray] = field(default_factory=dict)   # (B,) per-scenario extras
+
+    @classmethod
+    def empty(cls, batch: int, n_epochs: int, n_tasks: int) -> "EpisodeRecord":
+        return cls(r_perf=np.zeros((batch, n_epochs)),
+                   reallocated=np.zeros((batch, n_epochs), dtype=bool),
+                   allocations=np.zeros((batch, n_epochs, n_tasks, 3), dtype=np.int16),
+                   upper_bound=np.zeros(batch))
+
+    @property
+    def total(self) -> np.ndarray:
+        """Total team performance per scenario: the sum of r_perf over the episode."""
+        return self.r_perf.sum(axis=1)
+
+
+class SimState:
+    """Everything one batch of scenarios holds while it runs.
+
+    Models keep their true state in named groups (`sim.group("humans")`, a plain namespace of
+    arrays); `sim.params` carries the resolved mission; `sim.rng` draws per-scenario numbers.
+    """
+
+    def __init__(self, *, sizes: TeamSize, clock: Clock, rng: BatchRNG,
+                 params: dict[str, Any] | None = None, trace: bool = False):
+        self.sizes = sizes
+        self.clock = clock
+        self.rng = rng
+        self.params: dict[str, Any] = params or {}
+        self.batch_size = rng.batch_size
+        self.now = 0.0
+        self.epoch = 0
+        self.tick = 0
+        self.groups: dict[str, Any] = {}
+        self.allocation: Allocation | None = None
+        self.slot_call: dict[str, Any] = {}   # slot -> hook caller of its one component
+        self.record = EpisodeRecord.empty(self.batch_size, clock.n_epochs, sizes.tasks)
+        self.trace: list[tuple] | None = [] if trace else None
+
+    def group(self, name: str) -> Any:
+        """The namespace of arrays for one group, created empty on first use."""
+        if name not in self.groups:
+            self.groups[name] = _Group()
+        return self.groups[name]
+
+    def log(self, *event: Any) -> None:
+        """Append an event to the trace when tracing is on (tests assert on it)."""
+        if self.trace is not None:
+            self.trace.append(event)
+
+
+class _Group:
+    """A plain attribute namespace for a model's arrays."""
+
+    def __repr__(self) -> str:
+        return f"Group({', '.join(sorted(vars(self)))})"
+
+
+@dataclass
+class DecisionContext:
+    """What an allocation, condition or reallocation policy sees at a decision epoch."""
+
+    epoch: int
+    time: float
+    sizes: TeamSize
+    clock: Clock
+    inherent: Observation               # I: humans, robots, tasks (task attributes as estimated)
+    observed: Observation | None        # S after the injectors; None at t = 0
+    reconstructed: dict[str, np.ndarray]  # reconstructors' outputs by name
+    previous: Allocation | None         # the allocation in force; None at t = 0
+    reallocatable: np.ndarray           # (B, P) bool: tasks whose triple may change now
+    rng: BatchRNG
+    truth: Observation | None = None    # the true S, for supervised training only
+    params: dict[str, Any] = field(default_factory=dict)

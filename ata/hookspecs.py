@@ -1,0 +1,139 @@
+"""Hook specifications of ata, sectioned by the phase in which the kernel calls them.
+
+Two kinds of plugin take part:
+
+* *Package plugins* (the built-ins, third-party packages found through the ``ata`` entry-point
+  group) implement only the start-up hook ``ata_register_components``: they contribute
+  components by name.
+* *Components* (a human model, an injector, a policy ...) are objects that the kernel creates
+  for each batch from the mission file and registers into that batch's plugin manager. They
+  implement the phase hooks below. Each phase hook is called once per phase for the whole batch;
+  implementations run in mission order (task model, human model, robot model, routing,
+  injectors in their listed order, reconstructors, then the policies).
+
+The decision hooks (``ata_initial_allocation``, ``ata_should_reallocate``, ``ata_reallocate``)
+and the routing hook (``ata_next_targets``) are called only on the one component chosen for that
+slot.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pluggy
+
+if TYPE_CHECKING:
+    from ata.core.registry import Register
+    from ata.core.state import Allocation, DecisionContext, Observation, SimState
+
+hookspec = pluggy.HookspecMarker("ata")
+
+
+# --- start-up ---------------------------------------------------------------------------------
+
+@hookspec
+def ata_register_components(register: "Register") -> None:
+    """Contribute components by name.
+
+    :param register: call ``register(kind, name, factory)`` once per component. ``kind`` is one
+        of ``ata.core.registry.KINDS``; ``factory`` is a class whose ``Settings`` dataclass (if
+        any) lists the component's mission-file keys, called as ``factory(settings, mission)``.
+    """
+
+
+# --- setup: once per batch, before t = 0 -------------------------------------------------------
+
+@hookspec
+def ata_setup(sim: "SimState") -> None:
+    """Sample the batch's scenarios: inherent information, initial state, event schedules.
+
+    :param sim: the batch; models create their groups with ``sim.group(name)`` and draw their
+        numbers from ``sim.rng`` with stream names of their own.
+    """
+
+
+@hookspec
+def ata_inherent(sim: "SimState", inherent: "Observation") -> None:
+    """Write the inherent information I (humans, robots, estimated task attributes).
+
+    :param inherent: add one ``EntityTable`` per group with ``inherent.add(group, names, array)``.
+    """
+
+
+# --- decision epoch: at t = k * epoch_s, k = 0 .. T-1 ------------------------------------------
+
+@hookspec
+def ata_observe(sim: "SimState", obs: "Observation") -> None:
+    """Write the true dynamic state S at the current epoch into ``obs`` (one table per group)."""
+
+
+@hookspec
+def ata_inject(sim: "SimState", obs: "Observation") -> None:
+    """Corrupt the observation in place (noise, staleness): an uncertainty injector's phase.
+
+    :param obs: the observation so far; injectors run in the mission's listed order, each on the
+        output of the one before it. The true state stays in ``sim``.
+    """
+
+
+@hookspec
+def ata_reconstruct(sim: "SimState", obs: "Observation", inherent: "Observation",
+                    out: dict[str, np.ndarray]) -> None:
+    """Estimate the true state from the observation: a reconstructor's phase.
+
+    :param out: put each estimate under a name of your own, shape (B, N, F); policies read it
+        from ``DecisionContext.reconstructed``.
+    """
+
+
+@hookspec(firstresult=True)
+def ata_initial_allocation(ctx: "DecisionContext") -> "Allocation":
+    """Return the initial allocation (ITA) at t = 0. Called on the initial-policy component only."""
+
+
+@hookspec(firstresult=True)
+def ata_should_reallocate(ctx: "DecisionContext") -> np.ndarray:
+    """Return a (B,) bool array: reallocate now? Called on the condition component only."""
+
+
+@hookspec(firstresult=True)
+def ata_reallocate(ctx: "DecisionContext", active: np.ndarray) -> "Allocation":
+    """Return the new allocation for the scenarios where ``active`` (B,) holds.
+
+    Only tasks in ``ctx.reallocatable`` may change; the kernel keeps the previous triple for the
+    others and for inactive scenarios. Called on the reallocation component only.
+    """
+
+
+@hookspec
+def ata_allocation_changed(sim: "SimState", changed: np.ndarray) -> None:
+    """React to a new allocation in ``sim.allocation``; ``changed`` (B, P) marks changed tasks."""
+
+
+# --- tick: every tick_s seconds -----------------------------------------------------------------
+
+@hookspec(firstresult=True)
+def ata_next_targets(sim: "SimState", free: np.ndarray) -> np.ndarray:
+    """Return each free robot's next POI, (B, R) int, -1 for none. Called on the routing
+    component only, by the robot model through ``sim.slot_call["routing"]``.
+
+    :param free: (B, R) bool, the robots that need a target now.
+    """
+
+
+@hookspec
+def ata_advance(sim: "SimState", t0: float, t1: float) -> None:
+    """Advance the true state from time t0 to t1 (seconds) for the whole batch."""
+
+
+# --- epoch end and episode end -------------------------------------------------------------------
+
+@hookspec
+def ata_epoch_end(sim: "SimState", epoch: int) -> None:
+    """Record what happened in epoch ``epoch`` (e.g. ``sim.record.r_perf[:, epoch]``)."""
+
+
+@hookspec
+def ata_episode_end(sim: "SimState") -> None:
+    """Write per-scenario results: ``sim.record.upper_bound`` and ``sim.record.metrics``."""

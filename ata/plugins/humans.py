@@ -1,0 +1,204 @@
+"""The human model: P_hc, classification time, fatigue, workload, situational awareness, and one
+first-come-first-served busy timeline per human (MODEL.md section 5).
+
+Group ``humans``: ``eta``, ``lam``, ``theta_c``, ``theta_s``, ``skill``, ``t0_h`` (working hours
+at the start), ``busy_until``, ``booked_s`` (busy seconds booked so far), ``busy_ticks``
+(B, H, n_ticks: busy seconds in each tick), ``sa``, ``sa_time``, ``last_robot``.
+
+Work items come from the robot model: a classification waits in ``tasks.cls_ready`` (the time
+the image was captured), a navigation leg in ``robots.nav_ready`` with its ``nav_duration``.
+Each human takes the earliest-ready item among those addressed to them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ata import hookimpl
+from ata.core.settings import param
+from ata.core.state import Observation, SimState
+from ata.plugins import tables
+
+HUMAN_INHERENT = ("cognitive", "expertise", "skill")
+HUMAN_STATE = ("working_time", "fatigue", "idleness", "sa")
+
+
+class HumanModel:
+    """Humans on site, with the performance model of MODEL.md section 5."""
+
+    @dataclass
+    class Settings:
+        theta_max: float = param(np.pi / 4, min=0.0, max=np.pi / 2,
+                                 help="theta_c, theta_s ~ U(0, theta_max)")
+        t0_max_h: float = param(1.5, min=0.0, max=24.0,
+                                help="initial working hours ~ U(0, t0_max_h)")
+        fatigue_floor: float = param(0.4, min=0.0, max=1.0, help="lowest F_f")
+        window_s: float = param(300.0, min=1.0, help="utilisation window in seconds")
+        sa_drop: float = param(0.25, min=0.0, max=1.0, help="SA lost on switching robot")
+        sa_recovery_per_min: float = param(0.1, min=0.0, max=1.0, help="SA regained a minute")
+        switch_cost_s: float = param(30.0, min=0.0, help="extra busy time (1 - SA) * this")
+
+    def __init__(self, settings: "HumanModel.Settings", mission: object):
+        self.settings = settings
+
+    @hookimpl
+    def ata_setup(self, sim: SimState) -> None:
+        B, H, s = sim.batch_size, sim.sizes.humans, self.settings
+        h = sim.group("humans")
+        h.theta_c = sim.rng.uniform("humans.theta_c", 0, (H,)) * s.theta_max
+        h.theta_s = sim.rng.uniform("humans.theta_s", 0, (H,)) * s.theta_max
+        h.eta = np.sin(h.theta_c)
+        h.lam = np.sin(h.theta_s)
+        h.skill = tables.skill_band(h.theta_s)
+        h.t0_h = sim.rng.uniform("humans.t0", 0, (H,)) * s.t0_max_h
+        h.busy_until = np.zeros((B, H))
+        h.booked_s = np.zeros((B, H))
+        h.busy_ticks = np.zeros((B, H, sim.clock.n_ticks))
+        h.sa = np.ones((B, H))
+        h.sa_time = np.zeros((B, H))
+        h.last_robot = np.full((B, H), -1, dtype=np.int64)
+        h.cls_count = np.zeros((B, H))
+        h.cls_fatigued = np.zeros((B, H))
+        h.cls_u_low = np.zeros((B, H))
+        h.cls_u_high = np.zeros((B, H))
+        self._edges = np.arange(sim.clock.n_ticks) * sim.clock.tick_s
+
+    @hookimpl
+    def ata_inherent(self, sim: SimState, inherent: Observation) -> None:
+        h = sim.group("humans")
+        inherent.add("humans", HUMAN_INHERENT,
+                     np.stack([h.eta, h.lam, h.skill], axis=-1).astype(np.float64))
+
+    def working_hours(self, sim: SimState, now: float) -> np.ndarray:
+        """True working time T (hours) at a tick boundary, (B, H)."""
+        h = sim.group("humans")
+        k = int(round(now / sim.clock.tick_s))
+        return h.t0_h + h.busy_ticks[:, :, :k].sum(axis=2) / 3600.0
+
+    def utilisation(self, sim: SimState, now: float) -> np.ndarray:
+        """Busy share of the trailing window at a tick boundary, (B, H)."""
+        h, tick = sim.group("humans"), sim.clock.tick_s
+        k = int(round(now / tick))
+        lo = max(0, k - int(round(self.settings.window_s / tick)))
+        span = min(self.settings.window_s, now)
+        if span <= 0:
+            return np.zeros(h.busy_until.shape)
+        return np.minimum(1.0, h.busy_ticks[:, :, lo:k].sum(axis=2) / span)
+
+    @hookimpl
+    def ata_observe(self, sim: SimState, obs: Observation) -> None:
+        h, s, now = sim.group("humans"), self.settings, sim.now
+        hours = self.working_hours(sim, now)
+        sa = np.minimum(1.0, h.sa + s.sa_recovery_per_min * (now - h.sa_time) / 60.0)
+        sa = np.where(h.sa_time <= now, sa, h.sa)
+        feats = np.stack([hours, tables.fatigue(hours, s.fatigue_floor),
+                          1.0 - self.utilisation(sim, now), sa], axis=-1)
+        obs.add("humans", HUMAN_STATE, feats)
+
+    @hookimpl
+    def ata_advance(self, sim: SimState, t0: float, t1: float) -> None:
+        h, t, r = sim.group("humans"), sim.group("tasks"), sim.group("robots")
+        H = sim.sizes.humans
+        for _ in range(64):
+            cb, cp = np.nonzero(t.cls_ready < t1)
+            nb, nr = np.nonzero(r.nav_ready < t1)
+            if cb.size == 0 and nb.size == 0:
+                return
+            b = np.concatenate([cb, nb])
+            entity = np.concatenate([cp, nr])
+            is_nav = np.concatenate([np.zeros(cb.size, bool), np.ones(nb.size, bool)])
+            owner = np.concatenate([sim.allocation.classifier[cb, cp], r.nav_human[nb, nr]])
+            ready = np.concatenate([t.cls_ready[cb, cp], r.nav_ready[nb, nr]])
+            key = b * H + owner
+            # first come, first served; ties: classifications first, then the lower index
+            order = np.lexsort((entity, is_nav, ready, key))
+            ks = key[order]
+            first = order[np.r_[True, ks[1:] != ks[:-1]]]
+            sb, sh = b[first], owner[first]
+            start = np.maximum(h.busy_until[sb, sh], ready[first])
+            ok = start < t1
+            if not ok.any():
+                return
+            first, sb, sh, start = first[ok], sb[ok], sh[ok], start[ok]
+            self._start_items(sim, sb, sh, start, entity[first], is_nav[first])
+
+    def _start_items(self, sim: SimState, b: np.ndarray, hh: np.ndarray, start: np.ndarray,
+                     entity: np.ndarray, is_nav: np.ndarray) -> None:
+        """Start one work item for each (b, h) pair given: book it and apply its effects."""
+        h, t, r, s = sim.group("humans"), sim.group("tasks"), sim.group("robots"), self.settings
+        cls = ~is_nav
+        robot = np.where(is_nav, entity, sim.allocation.robot[b, np.where(cls, entity, 0)])
+        # situational awareness: recover since the last update, drop on a switch of robot
+        sa = np.minimum(1.0, h.sa[b, hh] + s.sa_recovery_per_min * (start - h.sa_time[b, hh]) / 60)
+        last = h.last_robot[b, hh]
+        switch = (last >= 0) & (last != robot)
+        sa = np.where(switch, np.maximum(0.0, sa - s.sa_drop), sa)
+        begin = start + np.where(switch, (1.0 - sa) * s.switch_cost_s, 0.0)
+
+        duration = np.empty(b.size)
+        # navigation legs: the robot moves from `begin`
+        if is_nav.any():
+            nb, nr = b[is_nav], entity[is_nav]
+            duration[is_nav] = r.nav_duration[nb, nr]
+            r.leg_start[nb, nr] = begin[is_nav]
+            r.leg_end[nb, nr] = begin[is_nav] + duration[is_nav]
+            r.nav_ready[nb, nr] = np.inf
+        if cls.any():
+            cb, cp, ch = b[cls], entity[cls], hh[cls]
+            q, d = t.quality[cb, cp], t.true_diff[cb, cp]
+            duration[cls] = tables.T_BAR[q, d]
+            hours = h.t0_h[cb, ch] + h.booked_s[cb, ch] / 3600.0
+            u = self._utilisation_at(sim, cb, ch, start[cls])
+            f_f = tables.fatigue(hours, s.fatigue_floor)
+            p_ok = tables.human_success(h.eta[cb, ch], h.lam[cb, ch], f_f, tables.workload(u),
+                                        tables.F_D[q, d])
+            points = tables.POINTS[d]
+            t.gain[cb, cp] = np.where(t.outcome_u[cb, cp] < p_ok, points, -points)
+            t.classified_at[cb, cp] = begin[cls] + duration[cls]
+            t.cls_ready[cb, cp] = np.inf
+            h.cls_count[cb, ch] += 1
+            h.cls_fatigued[cb, ch] += f_f < 0.95
+            h.cls_u_low[cb, ch] += u < 0.45
+            h.cls_u_high[cb, ch] += u >= 0.65
+        end = begin + duration
+        overlap = np.clip(np.minimum(end[:, None], self._edges + sim.clock.tick_s)
+                          - np.maximum(start[:, None], self._edges), 0.0, None)
+        h.busy_ticks[b, hh] += overlap
+        h.booked_s[b, hh] += end - start
+        h.busy_until[b, hh] = end
+        h.sa[b, hh] = sa
+        h.sa_time[b, hh] = start
+        h.last_robot[b, hh] = robot
+        if sim.trace is not None:
+            for i in range(b.size):
+                sim.log("start", "nav" if is_nav[i] else "classify", float(start[i]), int(b[i]),
+                        int(hh[i]), int(entity[i]), float(end[i]))
+
+    def _utilisation_at(self, sim: SimState, b: np.ndarray, hh: np.ndarray,
+                        start: np.ndarray) -> np.ndarray:
+        """Busy share of [start - window, start] for the given pairs; every booked item ends by
+        `start`, so the busy time of a tick before it is all inside the window's range."""
+        h, tick, window = sim.group("humans"), sim.clock.tick_s, self.settings.window_s
+        k_hi = np.floor(start / tick).astype(np.int64) + 1
+        k_lo = np.maximum(0, np.floor((start - window) / tick).astype(np.int64) + 1)
+        idx = np.arange(sim.clock.n_ticks)
+        inside = (idx >= k_lo[:, None]) & (idx < k_hi[:, None])
+        busy = (h.busy_ticks[b, hh] * inside).sum(axis=1)
+        span = np.minimum(window, start)
+        return np.where(span > 0, np.minimum(1.0, busy / np.maximum(span, 1e-9)), 0.0)
+
+    @hookimpl
+    def ata_episode_end(self, sim: SimState) -> None:
+        h, m = sim.group("humans"), sim.record.metrics
+        n = np.maximum(h.cls_count.sum(axis=1), 1)
+        m["human_classifications"] = h.cls_count.sum(axis=1)
+        m["fatigued_share"] = h.cls_fatigued.sum(axis=1) / n
+        m["underloaded_share"] = h.cls_u_low.sum(axis=1) / n
+        m["overloaded_share"] = h.cls_u_high.sum(axis=1) / n
+
+
+@hookimpl
+def ata_register_components(register) -> None:
+    register("human_model", "human", HumanModel)

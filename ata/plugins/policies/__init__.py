@@ -1,0 +1,1 @@
+"""Allocation policies: random and greedy (learned ones come as optional plugins)."""

@@ -1,0 +1,242 @@
+"""The robot model: UAV and UGV motion, image quality (Table I), capture, onboard classification
+(P_rc), and the hand-over of navigation legs and classifications to humans (MODEL.md section 4).
+
+Group ``robots``: ``type``, ``speed``, ``pos`` (B, R, 2), ``failed``, ``fail_time``, ``target``
+(POI or -1), ``leg_start``/``leg_end`` (inf when no leg is under way), ``leg_from``, ``leg_nav``,
+``nav_ready``/``nav_human``/``nav_duration`` (a leg waiting for its human navigator),
+``free_at``, ``parked`` (nothing left to visit), ``moved_s`` (seconds of finished legs).
+
+A robot is idle, waiting for its navigator, or on a leg (travel then the capture). A leg's
+times are exact; the kernel tick only decides when the next event is looked at.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ata import hookimpl
+from ata.core.settings import param
+from ata.core.state import Observation, SimState
+from ata.plugins import tables
+
+ROBOT_INHERENT = ("uav", "ugv", "speed")
+ROBOT_STATE = ("x", "y", "idleness", "working", "target")
+
+
+class RobotModel:
+    """Robots start at the base in the centre; half of them UAVs."""
+
+    @dataclass
+    class Settings:
+        uav_speed: float = param(8.0, min=0.0, help="UAV autonomous speed, m/s")
+        ugv_speed: float = param(3.0, min=0.0, help="UGV autonomous speed, m/s")
+        uav_fraction: float = param(0.5, min=0.0, max=1.0, help="share of UAVs in the team")
+        capture_s: float = param(3.0, min=0.0, help="time to capture the image at a POI, s")
+        skill_speed: list[float] = param([2.0 / 3.0, 1.0, 1.5], min=0.0,
+                                         help="speed factor under a low/medium/high navigator")
+
+    def __init__(self, settings: "RobotModel.Settings", mission: object):
+        self.settings = settings
+        if len(settings.skill_speed) != 3:
+            from ata.core.errors import MissionError
+            raise MissionError("[robot]", "skill_speed", "needs exactly three factors (low, "
+                               "medium, high skill)")
+        self.skill_speed = np.asarray(settings.skill_speed, dtype=float)
+
+    @hookimpl
+    def ata_setup(self, sim: SimState) -> None:
+        B, R, s = sim.batch_size, sim.sizes.robots, self.settings
+        r = sim.group("robots")
+        n_uav = int(round(R * s.uav_fraction))
+        r.type = np.broadcast_to(np.where(np.arange(R) < n_uav, tables.UAV, tables.UGV),
+                                 (B, R)).astype(np.int64)
+        r.speed = np.where(r.type == tables.UAV, s.uav_speed, s.ugv_speed).astype(float)
+        area = sim.group("tasks").area_m
+        r.area_m = area
+        r.pos = np.full((B, R, 2), area / 2.0)
+        r.failed = np.zeros((B, R), dtype=bool)
+        r.fail_time = np.full((B, R), np.inf)
+        r.target = np.full((B, R), -1, dtype=np.int64)
+        r.leg_start = np.full((B, R), np.inf)
+        r.leg_end = np.full((B, R), np.inf)
+        r.leg_from = r.pos.copy()
+        r.leg_nav = np.full((B, R), -1, dtype=np.int64)
+        r.nav_ready = np.full((B, R), np.inf)
+        r.nav_human = np.full((B, R), -1, dtype=np.int64)
+        r.nav_duration = np.zeros((B, R))
+        r.free_at = np.zeros((B, R))
+        r.parked = np.zeros((B, R), dtype=bool)
+        r.moved_s = np.zeros((B, R))
+        r.moved_at_epoch = np.zeros((B, R))
+        r.idleness = np.ones((B, R))
+
+    @hookimpl
+    def ata_inherent(self, sim: SimState, inherent: Observation) -> None:
+        r = sim.group("robots")
+        feats = np.stack([r.type == tables.UAV, r.type == tables.UGV, r.speed], axis=-1)
+        inherent.add("robots", ROBOT_INHERENT, feats.astype(np.float64))
+
+    def position(self, sim: SimState, now: float) -> np.ndarray:
+        """True positions at `now`, interpolated along legs under way, (B, R, 2)."""
+        r, t = sim.group("robots"), sim.group("tasks")
+        moving = np.isfinite(r.leg_start) & (r.target >= 0)
+        if not moving.any():
+            return r.pos.copy()
+        with np.errstate(invalid="ignore"):   # inf - inf where no leg is under way
+            travel = np.maximum(r.leg_end - self.settings.capture_s - r.leg_start, 1e-9)
+            frac = np.where(moving, np.clip((now - r.leg_start) / travel, 0.0, 1.0), 0.0)
+        dest = np.take_along_axis(t.pos, np.maximum(r.target, 0)[..., None], axis=1)
+        return np.where(moving[..., None], r.leg_from + frac[..., None] * (dest - r.leg_from),
+                        r.pos)
+
+    def moved_until(self, sim: SimState, now: float) -> np.ndarray:
+        """Seconds spent on legs up to `now`, (B, R)."""
+        r = sim.group("robots")
+        under_way = np.isfinite(r.leg_start)
+        with np.errstate(invalid="ignore"):   # inf - inf where no leg is under way
+            partial = np.where(under_way, np.clip(now - r.leg_start, 0.0,
+                                                  r.leg_end - r.leg_start), 0.0)
+        return r.moved_s + partial
+
+    @hookimpl
+    def ata_observe(self, sim: SimState, obs: Observation) -> None:
+        r, now = sim.group("robots"), sim.now
+        pos = self.position(sim, now) / r.area_m
+        feats = np.stack([pos[..., 0], pos[..., 1], r.idleness, ~r.failed, r.target], axis=-1)
+        obs.add("robots", ROBOT_STATE, feats.astype(np.float64))
+        # a POI whose leg is under way stays with its robot until captured
+        committed = np.zeros((sim.batch_size, sim.sizes.tasks), dtype=bool)
+        b, rr = np.nonzero(np.isfinite(r.leg_start) & (r.target >= 0))
+        committed[b, r.target[b, rr]] = True
+        realloc = obs.extras.get("reallocatable")
+        obs.extras["reallocatable"] = ~committed if realloc is None else realloc & ~committed
+
+    @hookimpl
+    def ata_allocation_changed(self, sim: SimState, changed: np.ndarray) -> None:
+        r = sim.group("robots")
+        waiting = np.isfinite(r.nav_ready) | ((r.target >= 0) & ~np.isfinite(r.leg_start))
+        cancel = waiting & np.take_along_axis(changed, np.maximum(r.target, 0), axis=1) \
+            & (r.target >= 0)
+        r.target[cancel] = -1
+        r.nav_ready[cancel] = np.inf
+        r.nav_human[cancel] = -1
+        r.free_at = np.where(cancel, np.maximum(r.free_at, sim.now), r.free_at)
+        r.parked &= ~changed.any(axis=1)[:, None]
+
+    @hookimpl
+    def ata_advance(self, sim: SimState, t0: float, t1: float) -> None:
+        r = sim.group("robots")
+        # Events in time order within the tick: captures due before a failure, dispatches of
+        # robots free before they fail, then failures (which abort the legs under way).
+        for _ in range(64):
+            progressed = False
+            done = (r.leg_end <= t1) & (r.leg_end <= r.fail_time)
+            if done.any():
+                self._capture(sim, *np.nonzero(done))
+                progressed = True
+            free = (~r.failed & (r.target < 0) & ~r.parked
+                    & (r.free_at < np.minimum(t1, r.fail_time)))
+            if free.any():
+                progressed |= self._dispatch(sim, free, t0)
+            newly = ~r.failed & (r.fail_time < t1) & ~((r.leg_end <= t1)
+                                                       & (r.leg_end <= r.fail_time))
+            if newly.any():
+                self._fail(sim, *np.nonzero(newly))
+                progressed = True
+            if not progressed:
+                break
+
+    def _fail(self, sim: SimState, b: np.ndarray, rr: np.ndarray) -> None:
+        r = sim.group("robots")
+        ft = r.fail_time[b, rr]
+        on_leg = np.isfinite(r.leg_start[b, rr]) & (r.leg_start[b, rr] <= ft)
+        with np.errstate(invalid="ignore"):   # inf - inf for robots not on a leg
+            travel = np.maximum(r.leg_end[b, rr] - self.settings.capture_s - r.leg_start[b, rr],
+                                1e-9)
+            frac = np.where(on_leg, np.clip((ft - r.leg_start[b, rr]) / travel, 0, 1), 0.0)
+        dest = sim.group("tasks").pos[b, np.maximum(r.target[b, rr], 0)]
+        moved_pos = r.leg_from[b, rr] + frac[:, None] * (dest - r.leg_from[b, rr])
+        r.pos[b, rr] = np.where(on_leg[:, None], moved_pos, r.pos[b, rr])
+        r.moved_s[b, rr] += np.where(on_leg, ft - np.where(on_leg, r.leg_start[b, rr], 0.0), 0.0)
+        r.failed[b, rr] = True
+        r.target[b, rr] = -1
+        r.leg_start[b, rr] = np.inf
+        r.leg_end[b, rr] = np.inf
+        r.nav_ready[b, rr] = np.inf
+        r.nav_human[b, rr] = -1
+        for i in range(b.size if sim.trace is not None else 0):
+            sim.log("fail", float(ft[i]), int(b[i]), int(rr[i]))
+
+    def _capture(self, sim: SimState, b: np.ndarray, rr: np.ndarray) -> None:
+        r, t, h = sim.group("robots"), sim.group("tasks"), sim.group("humans")
+        p = r.target[b, rr]
+        te = r.leg_end[b, rr]
+        r.moved_s[b, rr] += te - r.leg_start[b, rr]
+        r.pos[b, rr] = t.pos[b, p]
+        nav = r.leg_nav[b, rr]
+        nav_class = np.where(nav < 0, 1, h.skill[b, np.maximum(nav, 0)])
+        q = tables.QUALITY[r.type[b, rr], t.true_kind[b, p], nav_class]
+        t.capture_time[b, p] = te
+        t.quality[b, p] = q
+        onboard = sim.allocation.classifier[b, p] < 0
+        d = t.true_diff[b, p]
+        points = tables.POINTS[d]
+        win = t.outcome_u[b, p] < tables.P_RC[q, d]
+        ob, op = b[onboard], p[onboard]
+        t.classified_at[ob, op] = te[onboard]
+        t.gain[ob, op] = np.where(win, points, -points)[onboard]
+        t.cls_ready[b[~onboard], p[~onboard]] = te[~onboard]
+        r.target[b, rr] = -1
+        r.leg_start[b, rr] = np.inf
+        r.leg_end[b, rr] = np.inf
+        r.leg_nav[b, rr] = -1
+        r.free_at[b, rr] = te
+        for i in range(b.size if sim.trace is not None else 0):
+            sim.log("capture", float(te[i]), int(b[i]), int(rr[i]), int(p[i]), int(q[i]))
+
+    def _dispatch(self, sim: SimState, free: np.ndarray, t0: float) -> bool:
+        """Give each free robot its next POI from the routing component; start or queue legs."""
+        r, t, h = sim.group("robots"), sim.group("tasks"), sim.group("humans")
+        nxt = np.asarray(sim.slot_call["routing"](sim=sim, free=free))
+        got = free & (nxt >= 0)
+        r.parked |= free & (nxt < 0)
+        if not got.any():
+            return False
+        b, rr = np.nonzero(got)
+        p = nxt[b, rr]
+        nav = sim.allocation.navigator[b, p]
+        human = nav >= 0
+        factor = np.where(human, self.skill_speed[h.skill[b, np.maximum(nav, 0)]], 1.0)
+        dist = np.linalg.norm(t.pos[b, p] - r.pos[b, rr], axis=-1)
+        speed = r.speed[b, rr] * factor
+        travel = np.where(speed > 0, dist / np.maximum(speed, 1e-12), np.inf)
+        duration = travel + self.settings.capture_s
+        start = np.maximum(r.free_at[b, rr], t0)
+        r.target[b, rr] = p
+        r.leg_from[b, rr] = r.pos[b, rr]
+        r.leg_nav[b, rr] = nav
+        r.leg_start[b, rr] = np.where(human, np.inf, start)
+        r.leg_end[b, rr] = np.where(human, np.inf, start + duration)
+        r.nav_ready[b, rr] = np.where(human, start, np.inf)
+        r.nav_human[b, rr] = np.where(human, nav, -1)
+        r.nav_duration[b, rr] = np.where(human, duration, 0.0)
+        return True
+
+    @hookimpl
+    def ata_epoch_end(self, sim: SimState, epoch: int) -> None:
+        r = sim.group("robots")
+        moved = self.moved_until(sim, sim.now + sim.clock.epoch_s)
+        r.idleness = 1.0 - np.clip((moved - r.moved_at_epoch) / sim.clock.epoch_s, 0.0, 1.0)
+        r.moved_at_epoch = moved
+
+    @hookimpl
+    def ata_episode_end(self, sim: SimState) -> None:
+        r = sim.group("robots")
+        sim.record.metrics["robot_failures"] = r.failed.sum(axis=1).astype(float)
+
+
+@hookimpl
+def ata_register_components(register) -> None:
+    register("robot_model", "robot", RobotModel)

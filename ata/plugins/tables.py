@@ -1,0 +1,95 @@
+"""The tables and formulas of MODEL.md, as vectorised functions shared by the built-in models.
+
+Codes: kind 0 = air, 1 = ground; difficulty 0 = low, 1 = medium, 2 = high; image quality
+0 = Low, 1 = Medium, 2 = Upper-Medium, 3 = High; robot type 0 = UAV, 1 = UGV; skill band
+0 = low, 1 = medium, 2 = high; navigator class 0 = low skill, 1 = auto or medium, 2 = high.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+AIR, GROUND = 0, 1
+UAV, UGV = 0, 1
+KINDS = ("air", "ground")
+DIFFICULTIES = ("low", "medium", "high")
+QUALITIES = ("Low", "Medium", "Upper-Medium", "High")
+SKILLS = ("low", "medium", "high")
+
+POINTS = np.array([15.0, 25.0, 35.0])
+"""Points by difficulty [paper]."""
+
+QUALITY = np.array([
+    # navigator class:  low, auto/medium, high
+    [[1, 2, 3],    # UAV, air POI
+     [0, 1, 2]],   # UAV, ground POI
+    [[0, 1, 2],    # UGV, air POI
+     [1, 2, 3]],   # UGV, ground POI
+], dtype=np.int64)
+"""QUALITY[robot type, POI kind, navigator class] -> image quality [paper, Table I]."""
+
+P_RC = np.array([[0.5, 0.3, 0.1],
+                 [0.6, 0.4, 0.2],
+                 [0.7, 0.5, 0.3],
+                 [0.8, 0.6, 0.4]])
+"""P_RC[quality, difficulty]: onboard classification success [testbed]."""
+
+T_BAR = np.array([[45.0, 125.0, 245.0],
+                  [35.0, 95.0, 195.0],
+                  [25.0, 65.0, 145.0],
+                  [15.0, 35.0, 95.0]])
+"""T_BAR[quality, difficulty]: human classification time in seconds [testbed]."""
+
+SKILL_SPEED = np.array([2.0 / 3.0, 1.0, 1.5])
+"""Speed multiplier under a human navigator of skill band low, medium, high [testbed ratio]."""
+
+
+def decision_difficulty(t_bar: np.ndarray) -> np.ndarray:
+    """F_d = 1 / (1 + exp(0.04 (t_bar - 180)))."""
+    return 1.0 / (1.0 + np.exp(0.04 * (np.asarray(t_bar, dtype=float) - 180.0)))
+
+
+F_D = decision_difficulty(T_BAR)
+"""F_D[quality, difficulty]."""
+
+
+def fatigue(hours: np.ndarray, floor: float = 0.4) -> np.ndarray:
+    """F_f: 1 below one working hour, then 1.3 - 0.3 T, not below ``floor``."""
+    h = np.asarray(hours, dtype=float)
+    return np.where(h < 1.0, 1.0, np.maximum(floor, 1.3 - 0.3 * h))
+
+
+def workload(u: np.ndarray) -> np.ndarray:
+    """F_w of utilisation u: rising quadratic, plateau at 1 on [0.45, 0.65), falling quadratic."""
+    u = np.asarray(u, dtype=float)
+    low = -2.47 * u * u + 2.22 * u + 0.5
+    high = -4.08 * u * u + 5.31 * u - 0.724
+    return np.where(u < 0.45, low, np.where(u < 0.65, 1.0, high))
+
+
+def human_success(eta: np.ndarray, lam: np.ndarray, f_f: np.ndarray, f_w: np.ndarray,
+                  f_d: np.ndarray) -> np.ndarray:
+    """P_hc = 1/2 + eta * F_f * F_w * lambda * F_d."""
+    return 0.5 + eta * f_f * f_w * lam * f_d
+
+
+def skill_band(theta_s: np.ndarray) -> np.ndarray:
+    """Skill band from theta_s: low below pi/12, medium below pi/6, high from pi/6."""
+    t = np.asarray(theta_s, dtype=float)
+    return np.where(t < np.pi / 12, 0, np.where(t < np.pi / 6, 1, 2)).astype(np.int64)
+
+
+def navigator_class(navigator: np.ndarray, skill: np.ndarray) -> np.ndarray:
+    """Navigator class per task: 1 for auto (navigator -1), else the human's skill band.
+
+    :param navigator: (B, ...) human index or -1; :param skill: (B, H) skill bands.
+    """
+    nav = np.asarray(navigator)
+    flat = nav.reshape(nav.shape[0], -1)
+    cls = np.take_along_axis(skill, np.maximum(flat, 0), axis=1)
+    return np.where(flat < 0, 1, cls).reshape(nav.shape)
+
+
+def expected_points(points: np.ndarray, p_success: np.ndarray) -> np.ndarray:
+    """Expected score of a classification: +points with p, -points with 1 - p."""
+    return points * (2.0 * p_success - 1.0)

@@ -1,0 +1,1 @@
+"""Uncertainty injectors: fatigue noise, task attribute change, robot failure, latency."""
