@@ -72,6 +72,10 @@ class EntityTable:
     def copy(self) -> "EntityTable":
         return EntityTable(self.names, self.features.copy(), self.mask.copy())
 
+    def take(self, rows: np.ndarray) -> "EntityTable":
+        """The table of a sub-batch of scenarios."""
+        return EntityTable(self.names, self.features[rows], self.mask[rows])
+
 
 class Observation(dict):
     """Entity tables by group name ("humans", "robots", "tasks"), plus named extra arrays."""
@@ -89,6 +93,12 @@ class Observation(dict):
     def copy(self) -> "Observation":
         out = Observation({k: v.copy() for k, v in self.items()})
         out.extras = {k: v.copy() for k, v in self.extras.items()}
+        return out
+
+    def take(self, rows: np.ndarray) -> "Observation":
+        """The observation of a sub-batch of scenarios."""
+        out = Observation({k: v.take(rows) for k, v in self.items()})
+        out.extras = {k: v[rows] for k, v in self.extras.items()}
         return out
 
 
@@ -111,6 +121,10 @@ class Allocation:
 
     def copy(self) -> "Allocation":
         return Allocation(self.robot.copy(), self.navigator.copy(), self.classifier.copy())
+
+    def take(self, rows: np.ndarray) -> "Allocation":
+        """The allocation of a sub-batch of scenarios."""
+        return Allocation(self.robot[rows], self.navigator[rows], self.classifier[rows])
 
     def stack(self) -> np.ndarray:
         """(B, P, 3) int array of the triples."""
@@ -230,3 +244,15 @@ class DecisionContext:
     rng: BatchRNG
     truth: Observation | None = None    # the true S, for supervised training only
     params: dict[str, Any] = field(default_factory=dict)
+
+    def take(self, rows: np.ndarray) -> "DecisionContext":
+        """The context of a sub-batch of scenarios (a policy may decide for those alone)."""
+        def sub(x):
+            return None if x is None else x.take(rows)
+        return DecisionContext(epoch=self.epoch, time=self.time, sizes=self.sizes,
+                               clock=self.clock, inherent=sub(self.inherent),
+                               observed=sub(self.observed),
+                               reconstructed={k: v[rows] for k, v in self.reconstructed.items()},
+                               previous=sub(self.previous), reallocatable=self.reallocatable[rows],
+                               rng=self.rng.subset(rows), truth=sub(self.truth),
+                               params=self.params)

@@ -18,23 +18,19 @@ class NearestRouting:
     def ata_next_targets(self, sim: SimState, free: np.ndarray) -> np.ndarray:
         r, t = sim.group("robots"), sim.group("tasks")
         out = np.full(free.shape, -1, dtype=np.int64)
-        rows = np.nonzero(free.any(axis=1))[0]
-        if rows.size == 0:
+        fb, fr = np.nonzero(free)
+        if fb.size == 0:
             return out
-        robot_of = sim.allocation.robot[rows]                                    # (b, P)
-        open_ = ~np.isfinite(t.capture_time[rows])                               # (b, P)
-        # POIs another robot is already heading to are not open
-        targeted = np.zeros_like(open_)
-        tb, tr = np.nonzero(r.target[rows] >= 0)
-        targeted[tb, r.target[rows][tb, tr]] = True
-        open_ &= ~targeted
-        R = free.shape[1]
-        mine = (robot_of[:, None, :] == np.arange(R)[None, :, None]) & open_[:, None, :]
-        mine &= free[rows][:, :, None]
-        diff = t.pos[rows][:, None, :, :] - r.pos[rows][:, :, None, :]            # (b, R, P, 2)
-        dist = np.where(mine, np.hypot(diff[..., 0], diff[..., 1]), np.inf)
-        best = dist.argmin(axis=2)
-        out[rows] = np.where(np.isfinite(dist.min(axis=2)), best, -1)
+        # open: assigned to this robot, not captured, and no other robot heading there
+        open_ = ~np.isfinite(t.capture_time[fb]) & (sim.allocation.robot[fb] == fr[:, None])
+        tb, tr = np.nonzero(r.target >= 0)
+        heading = np.zeros(t.capture_time.shape, dtype=bool)
+        heading[tb, r.target[tb, tr]] = True
+        open_ &= ~heading[fb]
+        diff = t.pos[fb] - r.pos[fb, fr][:, None, :]                               # (n, P, 2)
+        dist = np.where(open_, np.hypot(diff[..., 0], diff[..., 1]), np.inf)
+        best = dist.argmin(axis=1)
+        out[fb, fr] = np.where(open_.any(axis=1), best, -1)
         return out
 
 

@@ -50,6 +50,19 @@ class GreedyPolicy:
 
 def plan(ctx: DecisionContext, s: "GreedyPolicy.Settings", open_: np.ndarray) -> Allocation:
     """Plan the triples of the `open_` (B, P) tasks; the others keep their previous triple."""
+    rows = np.nonzero(open_.any(axis=1))[0]
+    if ctx.previous is not None and rows.size < open_.shape[0]:
+        # plan only the scenarios with something to plan; the rest keep their allocation
+        out = ctx.previous.copy()
+        if rows.size:
+            sub = _plan(ctx.take(rows), s, open_[rows])
+            out.robot[rows], out.navigator[rows], out.classifier[rows] = \
+                sub.robot, sub.navigator, sub.classifier
+        return out
+    return _plan(ctx, s, open_)
+
+
+def _plan(ctx: DecisionContext, s: "GreedyPolicy.Settings", open_: np.ndarray) -> Allocation:
     I, S = ctx.inherent, ctx.observed
     B, P = open_.shape
     H, R = ctx.sizes.humans, ctx.sizes.robots
@@ -96,7 +109,36 @@ def plan(ctx: DecisionContext, s: "GreedyPolicy.Settings", open_: np.ndarray) ->
     classifier = prev.classifier.copy() if prev is not None else np.full((B, P), -1, np.int64)
     remaining = open_.copy()
     high = skill == 2
-    q_idx, d_idx = np.arange(4)[:, None], np.arange(3)[None, :]
+    # flat lookups: (quality, difficulty) -> q * 3 + d; a scenario's row b of an (B, K) array
+    # is at b * K in the flattened array (1-D takes are far cheaper than 2-D fancy indexing)
+    p_rc, t_bar, quality = tables.P_RC.ravel(), tables.T_BAR.ravel(), tables.QUALITY.ravel()
+    row12 = (b_all * 12)[:, None]
+    rowH = (b_all * H)[:, None]
+    kind3 = kind * 3
+    points12 = np.tile(tables.POINTS, 4)
+    tx, ty = t_xy[..., 0] * area, t_xy[..., 1] * area
+    # distances once: task to task (B, P, P), and robot start to task (B, R, P); in the loop a
+    # robot is either where it started or at the last task it was given
+    gap_x, gap_y = tx[:, :, None] - tx[:, None, :], ty[:, :, None] - ty[:, None, :]
+    task_dist = np.sqrt(gap_x * gap_x + gap_y * gap_y)
+    del gap_x, gap_y
+    rx, ry = robot_xy[..., 0] * area, robot_xy[..., 1] * area
+    start_x, start_y = tx[:, None, :] - rx[:, :, None], ty[:, None, :] - ry[:, :, None]
+    start_dist = np.sqrt(start_x * start_x + start_y * start_y)
+    del start_x, start_y
+    at_task = np.full((B, R), -1, dtype=np.int64)
+    if S is not None and committed.any():
+        at_task[cb, cr] = target[cb, cr]
+
+    # per (robot type, navigator class auto / high skill): each task's (quality, difficulty)
+    # index into the 12 flattened combinations, offset to its scenario's row, and the
+    # expected points onboard; rows are picked per step by the chosen robot's type
+    combos = [(rt, nc) for rt in (tables.UAV, tables.UGV) for nc in (1, 2)]
+    qd_flat = np.stack([row12 + quality[rt * 6 + kind3 + nc] * 3 + diff for rt, nc in combos], 1)
+    ev_onboard = np.stack([points * (2 * p_rc[qd_flat[:, i] - row12] - 1)
+                           for i in range(len(combos))], axis=1)                # (B, 4, P)
+    tbar_task = np.stack([t_bar[qd_flat[:, i] - row12] for i in range(len(combos))], axis=1)
+    n_opt = 2 if (s.human_navigators and H > 0) else 1
 
     for _ in range(P):
         active = remaining.any(axis=1) & np.isfinite(robot_free.min(axis=1))
@@ -104,75 +146,72 @@ def plan(ctx: DecisionContext, s: "GreedyPolicy.Settings", open_: np.ndarray) ->
             break
         rs = robot_free.argmin(axis=1)
         t_free = robot_free[b_all, rs]
-        r_xy = robot_xy[b_all, rs]
-        dist = np.linalg.norm(t_xy - r_xy[:, None, :], axis=-1) * area          # (B, P)
-        v = speed[b_all, rs][:, None]
-        rtype = r_type[b_all, rs][:, None]
+        at = at_task[b_all, rs]
+        dist = task_dist[b_all, np.maximum(at, 0)]                              # (B, P)
+        if (at < 0).any():
+            dist = np.where((at < 0)[:, None], start_dist[b_all, rs], dist)
+        v = np.maximum(speed[b_all, rs], 1e-9)[:, None]
+        combo0 = r_type[b_all, rs] * 2
 
         # best human classifier for each (quality, difficulty), given the plan so far
         f_f = tables.fatigue(hours + np.maximum(human_free - now, 0) / 3600.0, s.fatigue_floor)
-        p_h = 0.5 + (eta * f_f * lam)[:, :, None, None] * tables.F_D[None, None]  # (B,H,4,3)
-        delay = np.maximum(human_free - t_free[:, None], 0.0)[:, :, None, None]
-        net_h = (tables.POINTS[d_idx] * (2 * p_h - 1) - s.human_time_cost
-                 * (tables.T_BAR[None, None] + delay))
-        best_c = net_h.argmax(axis=1)                                          # (B, 4, 3)
-        best_net = np.take_along_axis(net_h, best_c[:, None], axis=1)[:, 0]   # (B, 4, 3)
+        p_h = 0.5 + (eta * f_f * lam)[:, :, None] * tables.F_D.ravel()         # (B, H, 12)
+        delay = np.maximum(human_free - t_free[:, None], 0.0)[:, :, None]
+        net_h = points12 * (2 * p_h - 1) - s.human_time_cost * (t_bar + delay)
+        best_c = net_h.argmax(axis=1)                                          # (B, 12)
+        best_net = np.take_along_axis(net_h, best_c[:, None], axis=1)[:, 0].ravel()
+        best_free = np.take_along_axis(human_free, best_c, axis=1).ravel()
 
-        options = []
-        # option 0: autonomous driving
-        arrive = t_free[:, None] + dist / np.maximum(v, 1e-9) + s.capture_s
-        q = tables.QUALITY[rtype, kind, 1]
-        options.append((arrive, q, np.full(B, -1), np.zeros((B, P))))
-        # option 1: the first free highly skilled human navigates
-        if s.human_navigators and H > 0:
+        # option 0: the robot drives itself; option 1: the first free highly skilled human
+        # navigates (faster, one quality level up, the human busy for the leg)
+        arrivals = [t_free[:, None] + dist / v + s.capture_s]
+        nav_costs = [0.0]
+        if n_opt == 2:
             hf = np.where(high, human_free, np.inf)
             hn = hf.argmin(axis=1)
-            has = np.isfinite(hf[b_all, hn])
             start = np.maximum(t_free, hf[b_all, hn])[:, None]
-            leg = dist / np.maximum(v * tables.SKILL_SPEED[2], 1e-9) + s.capture_s
-            arrive_h = np.where(has[:, None], start + leg, np.inf)
-            options.append((arrive_h, tables.QUALITY[rtype, kind, 2], np.where(has, hn, -1),
-                            s.human_time_cost * leg))
-
-        best_score = np.full((B, P), -np.inf)
-        choice = {}
-        for o, (arr, qq, nav_h, nav_cost) in enumerate(options):
-            ev_on = points * (2 * tables.P_RC[qq, diff] - 1)
-            c = best_c[b_all[:, None], qq, diff]
-            hum_net = best_net[b_all[:, None], qq, diff]
-            finish = np.maximum(arr, human_free[b_all[:, None], c]) + tables.T_BAR[qq, diff]
-            hum_net = np.where(finish <= horizon, hum_net, 0.0)
-            use_h = hum_net > ev_on
-            value = np.maximum(hum_net, ev_on) - nav_cost
-            feasible = remaining & (arr <= horizon)
+            leg = dist / (v * tables.SKILL_SPEED[2]) + s.capture_s
+            arrivals.append(start + leg)          # inf where no highly skilled human exists
+            nav_costs.append(s.human_time_cost * leg)
+        scores = []
+        for o in range(n_opt):
+            arr = arrivals[o]
+            combo = combo0 + o
+            qd = qd_flat[b_all, combo]
+            ev_on = ev_onboard[b_all, combo]
+            finish = np.maximum(arr, best_free[qd]) + tbar_task[b_all, combo]
+            hum_net = np.where(finish <= horizon, best_net[qd], 0.0)
+            value = np.maximum(hum_net, ev_on) - nav_costs[o]
             with np.errstate(invalid="ignore"):   # inf - inf for robots that are done
                 rate = value / (arr - t_free[:, None] + s.rate_offset_s)
-            score = np.where(feasible, rate, -np.inf)
-            better = score > best_score
-            best_score = np.where(better, score, best_score)
-            choice[o] = (better, np.where(use_h, c, -1), arr, qq)
-        p_star = best_score.argmax(axis=1)
-        ok = active & np.isfinite(best_score[b_all, p_star])
+            scores.append(np.where(remaining & (arr <= horizon), rate, -np.inf))
+        score = np.concatenate(scores, axis=1)                                 # (B, O * P)
+        flat = score.argmax(axis=1)
+        o_star, p_star = np.divmod(flat, P)
+        ok = active & np.isfinite(score[b_all, flat])
         # a robot with nothing it can reach in time is done
         robot_free[b_all[active & ~ok], rs[active & ~ok]] = np.inf
         if not ok.any():
             continue
-        o_star = np.zeros(B, dtype=np.int64)
-        for o in range(1, len(options)):
-            o_star = np.where(choice[o][0][b_all, p_star], o, o_star)
-        b = b_all[ok]
-        p = p_star[ok]
-        o_b = o_star[ok]
-        cls = np.select([o_b == o for o in choice], [choice[o][1][b, p] for o in choice])
-        arr = np.select([o_b == o for o in choice], [choice[o][2][b, p] for o in choice])
-        qq = np.select([o_b == o for o in choice], [choice[o][3][b, p] for o in choice])
-        nav = np.where(o_b == 1, options[-1][2][b] if len(options) > 1 else -1, -1)
+        # the chosen option's details, for the chosen task only
+        b, p, o_b = b_all[ok], p_star[ok], o_star[ok]
+        combo = combo0[b] + o_b
+        qd = qd_flat[b, combo, p]
+        qq = (qd - row12[b, 0]) // 3
+        arr = np.where(o_b == 0, arrivals[0][b, p], arrivals[-1][b, p])
+        c = best_c.ravel()[qd]
+        finish = np.maximum(arr, best_free[qd]) + tbar_task[b, combo, p]
+        # a human classifier also when none can finish in time but onboard expects a loss:
+        # an unclassified POI scores 0
+        use_h = np.where(finish <= horizon, best_net[qd], 0.0) > ev_onboard[b, combo, p]
+        cls = np.where(use_h, c, -1)
+        nav = np.where(o_b == 1, hn[b] if n_opt == 2 else -1, -1)
         robot[b, p] = rs[b]
         navigator[b, p] = nav
         classifier[b, p] = cls
         remaining[b, p] = False
         robot_free[b, rs[b]] = arr
-        robot_xy[b, rs[b]] = t_xy[b, p]
+        at_task[b, rs[b]] = p
         hn_b = nav >= 0
         human_free[b[hn_b], nav[hn_b]] = arr[hn_b]
         hc = cls >= 0
