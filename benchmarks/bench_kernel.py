@@ -1,0 +1,57 @@
+"""Simulator throughput: scenario-epochs per second at batch size 1 and 500, settings (a) and (b).
+
+Usage: python benchmarks/bench_kernel.py [--single 20] [--batch 500]
+
+Prints, for each setting and each greedy configuration (greedy initial allocation alone, and
+with event-triggered greedy reallocation, the default mission), the throughput at batch size 1
+(over `--single` scenarios run one at a time) and at batch size `--batch` (one batch), their
+ratio, and the wall time of the whole batch. Ratios are taken within one run: this machine is
+shared and noisy, so compare ratios, not absolute times across runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+from rich.console import Console
+from rich.table import Table
+
+from ata.core.runner import load_session, run_mission
+
+CONFIGS = {
+    "greedy ITA only": ["components.condition='never'"],
+    "greedy + on_event realloc": [],
+}
+
+
+def measure(setting: str, extra: list[str], scenarios: int, batch: int) -> tuple[float, float]:
+    """(wall seconds, scenario-epochs per second) of one run."""
+    session = load_session(None, [f"mission.setting='{setting}'", f"mission.scenarios={scenarios}",
+                                  f"mission.batch_size={batch}", "mission.workers=1", *extra])
+    t0 = time.perf_counter()
+    run_mission(session)
+    wall = time.perf_counter() - t0
+    return wall, scenarios * session.mission.clock.n_epochs / wall
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--single", type=int, default=20, help="scenarios run at batch size 1")
+    parser.add_argument("--batch", type=int, default=500, help="the large batch size")
+    args = parser.parse_args()
+    table = Table(title="ata kernel throughput (scenario-epochs per second)")
+    for col in ("setting", "configuration", "batch 1", f"batch {args.batch}", "ratio",
+                f"wall time, {args.batch} scenarios"):
+        table.add_column(col, justify="right" if col != "configuration" else "left")
+    for setting in ("a", "b"):
+        for name, extra in CONFIGS.items():
+            _, single = measure(setting, extra, args.single, 1)
+            wall, batched = measure(setting, extra, args.batch, args.batch)
+            table.add_row(setting, name, f"{single:,.0f}", f"{batched:,.0f}",
+                          f"{batched / single:.1f}x", f"{wall:.2f} s")
+    Console().print(table)
+
+
+if __name__ == "__main__":
+    main()
