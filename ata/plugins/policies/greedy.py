@@ -29,7 +29,7 @@ class GreedyPolicy:
     @dataclass
     class Settings:
         human_time_cost: float = param(0.04, min=0.0, help="price of a human second, points")
-        rate_offset_s: float = param(20.0, min=0.0,
+        rate_offset_s: float = param(300.0, min=0.0,
                                      help="added to robot seconds in the rate (favours value "
                                           "over nearness)")
         human_navigators: bool = param(True, help="consider highly skilled human navigators")
