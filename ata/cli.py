@@ -10,6 +10,7 @@ from typing import Callable, List, Optional
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import (BarColumn, Progress, ProgressColumn, TaskProgressColumn,
                            TextColumn, TimeElapsedColumn, TimeRemainingColumn)
 from rich.table import Table
@@ -19,8 +20,21 @@ from ata import __version__
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="ATA: adaptive task allocation in multi-human multi-robot teams.")
-console = Console()
-err_console = Console(stderr=True)
+
+
+class _LazyConsole:
+    """A rich console made at first use in each command, so that it sees the terminal (and
+    COLUMNS) of the invocation, not of the import."""
+
+    def __init__(self, **kwargs):
+        self.kwargs = kwargs
+
+    def __getattr__(self, name):
+        return getattr(Console(**self.kwargs), name)
+
+
+console = _LazyConsole()
+err_console = _LazyConsole(stderr=True)
 
 SetOption = typer.Option(None, "--set", "-s", metavar="TABLE.KEY=VALUE",
                          help="Override a mission key, e.g. --set mission.seed=3 (repeatable).")
@@ -46,11 +60,13 @@ def user_errors(func: Callable) -> Callable:
         try:
             return func(*args, **kwargs)
         except MissionError as exc:
-            err_console.print(f"[bold red]error:[/] {exc}", highlight=False, markup=True)
+            # escape: the message names tables as [mission], which rich would take for markup
+            err_console.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False,
+                              soft_wrap=True)
             raise typer.Exit(2) from None
         except pluggy.PluginValidationError as exc:
-            err_console.print(f"[bold red]error:[/] a plugin failed validation: {exc}",
-                              highlight=False)
+            err_console.print(f"[bold red]error:[/] a plugin failed validation: "
+                              f"{escape(str(exc))}", highlight=False, soft_wrap=True)
             raise typer.Exit(2) from None
 
     return wrapper
@@ -92,7 +108,7 @@ def run(mission: Optional[str] = typer.Argument(
     total = m.settings.scenarios * m.clock.n_epochs
     columns = [TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
                SpeedColumn(), TimeElapsedColumn(), TimeRemainingColumn()]
-    with Progress(*columns, console=err_console, disable=quiet, transient=False) as progress:
+    with Progress(*columns, console=Console(stderr=True), disable=quiet) as progress:
         task = progress.add_task(f"{m.settings.name}: {m.settings.scenarios} scenarios",
                                  total=total)
         result = runner.run_mission(session, progress=lambda n: progress.advance(task, n),
@@ -141,7 +157,7 @@ def check(mission: str = typer.Argument(..., help="Mission file (TOML)."),
     # build the components once, on one scenario: a component that cannot fill its slot fails
     Simulation(session.mission.replace(scenarios=1), session.registry, [0])
     m = session.mission
-    console.print(f"[green]ok[/]: {mission}: setting {m.settings.setting} "
+    console.print(f"[green]ok[/]: {escape(mission)}: setting {m.settings.setting} "
                   f"({m.sizes.humans} humans, {m.sizes.robots} robots, {m.sizes.tasks} POIs), "
                   f"{m.settings.scenarios} scenarios, {m.settings.uncertainty} uncertainty "
                   f"(fatigue variance {m.fatigue_variance}, event probability "
@@ -179,13 +195,14 @@ def plugins(verbose: bool = typer.Option(False, "--verbose", "-v",
     if verbose:
         for info in sorted(registry.components.values(), key=lambda c: (c.kind, c.name)):
             cls = getattr(info.factory, "Settings", None)
-            sub = Table(title=f"[{info.name}] ({info.kind}, from {info.plugin})", title_justify="left")
+            sub = Table(title=escape(f"[{info.name}] ({info.kind}, from {info.plugin})"),
+                        title_justify="left")
             sub.add_column("key")
             sub.add_column("type")
             sub.add_column("default")
             sub.add_column("meaning")
             for key, tp, default, text in (describe(cls) if cls else []):
-                sub.add_row(key, tp, repr(default), text)
+                sub.add_row(key, tp, escape(repr(default)), escape(text))
             console.print(sub)
 
 

@@ -7,6 +7,7 @@ fails here rather than being ignored.
 
 from __future__ import annotations
 
+import difflib
 import importlib
 import os
 import sys
@@ -108,11 +109,25 @@ def get_plugin_manager(*, optional: Iterable[str] = (), entry_points: bool = Tru
         pm.load_setuptools_entrypoints("ata")
     for plugin in extra:
         pm.register(plugin)
-    pm.check_pending()
+    _check_pending(pm)
     if os.environ.get("ATA_TRACE_HOOKS"):
         pm.trace.root.setwriter(lambda text: sys.stderr.write(text))
         pm.enable_tracing()
     return pm
+
+
+def _check_pending(pm: pluggy.PluginManager) -> None:
+    """pm.check_pending(), with the known hooks and the closest name in the message."""
+    try:
+        pm.check_pending()
+    except pluggy.PluginValidationError as exc:
+        known = sorted(n for n in dir(hookspecs) if n.startswith("ata_"))
+        bad = [name for name, caller in vars(pm.hook).items()
+               if not caller.has_spec() and caller.get_hookimpls()]
+        close = difflib.get_close_matches(bad[0], known, n=1) if bad else []
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        raise pluggy.PluginValidationError(exc.plugin, f"{exc}{hint} (hooks: "
+                                           f"{', '.join(known)})") from None
 
 
 def plugin_version(pm: pluggy.PluginManager, plugin: Any) -> str:
@@ -132,11 +147,14 @@ def plugin_version(pm: pluggy.PluginManager, plugin: Any) -> str:
 def collect_components(pm: pluggy.PluginManager) -> Register:
     """Ask every plugin for its components, remembering who registered what."""
     register = Register()
-    for plugin in pm.get_plugins():
+    # in start-up order (get_plugins() is a set): a clash names the later plugin, every run
+    for name, plugin in pm.list_name_plugin():
+        if plugin is None:      # blocked
+            continue
         caller = pm.subset_hook_caller("ata_register_components",
                                        remove_plugins=[p for p in pm.get_plugins()
                                                        if p is not plugin])
-        register._plugin = pm.get_name(plugin) or repr(plugin)
+        register._plugin = name
         register._dist = plugin_version(pm, plugin)
         caller(register=register)
     return register

@@ -29,7 +29,9 @@ def _type_name(tp: Any) -> str:
         return " or ".join(_type_name(a) for a in typing.get_args(tp))
     if origin is list:
         (arg,) = typing.get_args(tp) or (Any,)
-        return f"list of {_type_name(arg)}"
+        plural = {int: "integers", float: "numbers", bool: "true or false values",
+                  str: "strings"}.get(arg, _type_name(arg))
+        return f"a list of {plural}"
     return {int: "an integer", float: "a number", bool: "true or false", str: "a string",
             type(None): "nothing"}.get(tp, getattr(tp, "__name__", str(tp)))
 

@@ -1,0 +1,302 @@
+"""The command line: `ata run`, `ata check`, `ata plugins`, and one clear message per bad input."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import os
+import subprocess
+import sys
+import tomllib
+
+import pytest
+from typer.testing import CliRunner
+
+from ata import __version__
+from ata.cli import app
+from ata.core import runner as runner_mod
+from ata.core.mission import ComponentSlots, MissionSettings
+from ata.core.registry import BUILTIN_PLUGINS, collect_components, get_plugin_manager
+
+TINY = """\
+[mission]
+name = "tiny"
+scenarios = 3
+batch_size = 3
+"""
+
+BUILTIN_COMPONENTS = {
+    "task_model:poi", "human_model:human", "robot_model:robot", "routing:nearest",
+    "injector:fatigue_noise", "injector:attribute_change", "injector:robot_failure",
+    "injector:latency", "reconstructor:identity", "policy:greedy", "policy:random",
+    "condition:never", "condition:always", "condition:on_event",
+}
+
+
+@pytest.fixture
+def cli():
+    # a wide terminal, so that rich does not wrap or truncate the lines asserted on
+    runner = CliRunner(env={"COLUMNS": "200"})
+    return lambda *args: runner.invoke(app, [str(a) for a in args])
+
+
+@pytest.fixture
+def tiny(tmp_path):
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY, encoding="utf-8")
+    return path
+
+
+def flat(text: str) -> str:
+    """Whitespace collapsed, so that a message wrapped by rich still matches."""
+    return " ".join(text.split())
+
+
+def read_rows(path):
+    with open(path, newline="", encoding="utf-8") as f:
+        return list(csv.DictReader(f))
+
+
+# --- run -----------------------------------------------------------------------------------------
+
+def test_run_tiny_mission_writes_the_run_folder(cli, tiny, tmp_path):
+    out = tmp_path / "run"
+    result = cli("run", tiny, "--out", out, "--quiet")
+    assert result.exit_code == 0, result.output
+    text = flat(result.output)
+    assert "tiny: setting a (6 humans, 8 robots, 60 POIs), medium uncertainty, seed 0" in text
+    assert "greedy / on_event / greedy" in text
+    assert f"results: {out}" in text
+    assert sorted(p.name for p in out.iterdir()) == [
+        "mission.resolved.toml", "plugins.toml", "results.csv", "summary.json"]
+
+    rows = read_rows(out / "results.csv")
+    assert [int(r["scenario"]) for r in rows] == [0, 1, 2]
+    assert {"score", "upper_bound", "fraction_of_u", "reallocations"} <= set(rows[0])
+
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["scenarios"] == 3
+    scores = [float(r["score"]) for r in rows]
+    assert summary["score_mean"] == pytest.approx(sum(scores) / 3)
+
+    versions = tomllib.loads((out / "plugins.toml").read_text())
+    assert versions["ata"] == __version__
+    assert versions["components"]["policy greedy"] == f"ata {__version__}"
+    assert versions["components"]["injector latency"] == f"ata {__version__}"
+
+
+def test_resolved_mission_reloads_with_every_default_filled_in(cli, tiny, tmp_path):
+    out = tmp_path / "run"
+    assert cli("run", tiny, "--out", out, "-q").exit_code == 0
+    resolved_path = out / "mission.resolved.toml"
+    resolved = tomllib.loads(resolved_path.read_text())
+
+    # every [mission] and [components] key, the team filled in from setting (a)
+    assert set(resolved["mission"]) == {f.name for f in dataclasses.fields(MissionSettings)}
+    assert set(resolved["components"]) == {f.name for f in dataclasses.fields(ComponentSlots)}
+    assert (resolved["mission"]["humans"], resolved["mission"]["robots"],
+            resolved["mission"]["tasks"]) == (6, 8, 60)
+    assert resolved["mission"]["event_probability"] == 0.2     # the medium level's p
+    assert resolved["human"]["fatigue_floor"] == 0.4
+
+    # it loads and validates as a mission in its own right, to the same mission
+    session = runner_mod.load_session(str(resolved_path))
+    assert session.mission.resolved() == resolved
+    for name, st in session.mission.component_settings.items():
+        expected = ({f.name for f in dataclasses.fields(st) if getattr(st, f.name) is not None}
+                    if st is not None else set())
+        assert set(resolved[name]) == expected, name
+
+
+def test_run_without_a_mission_uses_the_built_in_default(cli, tmp_path):
+    out = tmp_path / "run"
+    result = cli("run", "--set", "mission.scenarios=2", "--out", out, "-q")
+    assert result.exit_code == 0, result.output
+    assert "default: setting a" in flat(result.output)
+    assert len(read_rows(out / "results.csv")) == 2
+    resolved = tomllib.loads((out / "mission.resolved.toml").read_text())
+    assert resolved["mission"]["name"] == "default"
+    assert resolved["mission"]["scenarios"] == 2
+
+
+def test_set_overrides_mission_and_component_keys(cli, tiny, tmp_path):
+    out = tmp_path / "run"
+    result = cli("run", tiny, "--out", out, "-q", "--set", "mission.seed=7",
+                 "--set", "mission.scenarios=2", "--set", "components.condition=never",
+                 "-s", "latency.probability=0.5")
+    assert result.exit_code == 0, result.output
+    assert "seed 7" in flat(result.output)
+    assert "greedy / never / greedy" in flat(result.output)
+    resolved = tomllib.loads((out / "mission.resolved.toml").read_text())
+    assert resolved["mission"]["seed"] == 7
+    assert resolved["components"]["condition"] == "never"
+    assert resolved["latency"]["probability"] == 0.5
+    rows = read_rows(out / "results.csv")
+    assert len(rows) == 2
+    assert [int(r["reallocations"]) for r in rows] == [0, 0]   # `never` never reallocates
+
+
+def test_set_changes_the_results(cli, tiny, tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert cli("run", tiny, "--out", a, "-q").exit_code == 0
+    assert cli("run", tiny, "--out", b, "-q", "--set", "mission.seed=1").exit_code == 0
+    assert read_rows(a / "results.csv") != read_rows(b / "results.csv")
+
+
+# --- check ---------------------------------------------------------------------------------------
+
+def test_check_a_valid_file(cli, tiny):
+    result = cli("check", tiny)
+    assert result.exit_code == 0, result.output
+    text = flat(result.output)
+    assert f"ok: {tiny}: setting a (6 humans, 8 robots, 60 POIs), 3 scenarios" in text
+    assert "fatigue variance 0.1, event probability 0.2" in text
+
+
+def test_check_show_prints_the_resolved_mission(cli, tiny):
+    result = cli("check", tiny, "--show", "--set", "mission.seed=5")
+    assert result.exit_code == 0, result.output
+    assert "seed = 5" in result.output
+    assert "[greedy]" in result.output
+
+
+def test_check_an_invalid_file(cli, tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text('[mission]\nseed = -3\n', encoding="utf-8")
+    result = cli("check", path)
+    assert result.exit_code == 2
+    assert "ok:" not in result.output
+    assert f"{path}: [mission] key 'seed': -3 is below the minimum" in flat(result.output)
+
+
+# --- plugins -------------------------------------------------------------------------------------
+
+def test_plugins_lists_every_built_in_component(cli):
+    result = cli("plugins")
+    assert result.exit_code == 0, result.output
+    registry = collect_components(get_plugin_manager())
+    listed = {f"{c.kind}:{c.name}" for c in registry.components.values()}
+    assert BUILTIN_COMPONENTS <= listed
+    for component in listed:
+        assert component in result.output
+    for module in BUILTIN_PLUGINS:
+        line = next(ln for ln in result.output.splitlines() if f" {module} " in ln)
+        assert f"ata {__version__}" in line
+
+
+def test_plugins_verbose_lists_settings(cli):
+    result = cli("plugins", "--verbose")
+    assert result.exit_code == 0, result.output
+    text = flat(result.output)
+    assert "[latency] (injector, from ata.plugins.uncertainty.latency)" in text
+    assert "groups │ a list of strings │ ['robots', 'tasks']" in text
+
+
+# --- bad input: one message naming the file, the key and what is allowed; exit 2 -----------------
+
+BAD_FILES = {
+    "toml_syntax": ("[mission\nscenarios = 3\n",
+                    ["TOML syntax error", "line 1"]),
+    "unknown_component": ('[components]\ninitial = "greddy"\n',
+                          ["[components] key 'initial': unknown policy 'greddy'; registered:",
+                           "greedy", "(see: ata plugins)"]),
+    "unknown_mission_key": ("[mission]\nscenarioes = 3\n",
+                            ["[mission] key 'scenarioes': unknown key; allowed keys:",
+                             "scenarios", "seed"]),
+    "unknown_component_key": ("[latency]\nprobabilty = 0.1\n",
+                              ["[latency] key 'probabilty': unknown key; allowed keys: groups, "
+                               "probability"]),
+    "unknown_table": ("[nothere]\nx = 1\n",
+                      ["[nothere]: names no chosen component; tables allowed:", "[mission]",
+                       "[components]", "[latency]"]),
+    "wrong_type": ('[mission]\nscenarios = "ten"\n',
+                   ["[mission] key 'scenarios': 'ten' is not an integer"]),
+    "negative_team": ("[mission]\nhumans = -1\n",
+                      ["[mission] key 'humans': -1 is below the minimum; allowed: 1 to 1000"]),
+    "probability_above_1": ("[latency]\nprobability = 1.5\n",
+                            ["[latency] key 'probability': 1.5 is above the maximum; "
+                             "allowed: 0.0 to 1.0"]),
+    "zero_pois": ("[mission]\ntasks = 0\n",
+                  ["[mission] key 'tasks': 0 is below the minimum; allowed: 1 to 10000"]),
+    "bad_choice": ('[mission]\nuncertainty = "extreme"\n',
+                   ["[mission] key 'uncertainty': 'extreme' is not allowed; choose one of "
+                    "'none', 'low', 'medium', 'high', 'custom'"]),
+    "list_expected": ('[components]\ninjectors = "latency"\n',
+                      ["[components] key 'injectors': 'latency' is not a list of strings"]),
+    "settings_for_settingless": ("[on_event]\nx = 1\n",
+                                 ["[on_event] key 'x': this component takes no settings"]),
+    "not_a_table": ("mission = 3\n", ["[mission]: must be a table"]),
+}
+
+
+def assert_user_error(result, *fragments: str) -> None:
+    """Exit 2, no traceback, exactly one message, holding every fragment."""
+    assert result.exit_code == 2, result.output
+    # typer.Exit(2), not an uncaught exception (CliRunner would report one as exit code 1)
+    assert result.exception is None or isinstance(result.exception, SystemExit)
+    assert "Traceback" not in result.output
+    lines = result.output.splitlines()
+    assert lines[0].startswith("error: ")
+    assert sum(line.startswith("error:") for line in lines) == 1, result.output
+    text = flat(result.output)
+    for fragment in fragments:
+        assert fragment in text, f"{fragment!r} not in {text!r}"
+
+
+@pytest.mark.parametrize("command", ["check", "run"])
+@pytest.mark.parametrize("case", sorted(BAD_FILES))
+def test_bad_mission_file(cli, tmp_path, command, case):
+    content, fragments = BAD_FILES[case]
+    path = tmp_path / "bad.toml"
+    path.write_text(content, encoding="utf-8")
+    args = [command, path] + (["--out", tmp_path / "run", "-q"] if command == "run" else [])
+    result = cli(*args)
+    assert_user_error(result, f"error: {path}: ", *fragments)
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("command", ["check", "run"])
+def test_missing_file(cli, tmp_path, command):
+    path = tmp_path / "nope.toml"
+    assert_user_error(cli(command, path), f"error: {path}: no such file")
+
+
+def test_directory_instead_of_a_file(cli, tmp_path):
+    assert_user_error(cli("check", tmp_path), f"error: {tmp_path}: is a directory")
+
+
+@pytest.mark.parametrize("override, fragments", [
+    ("mission.event_probability=1.5",
+     ["[mission] key 'event_probability': 1.5 is above the maximum; allowed: 0.0 to 1.0"]),
+    ("mission.scenarios=ten", ["[mission] key 'scenarios': 'ten' is not an integer"]),
+    ("components.initial=greddy", ["unknown policy 'greddy'; registered:"]),
+    ("mission.seed", ["--set: 'mission.seed' is not of the form table.key=value"]),
+    ("seed=3", ["--set: 'seed' must name a table and a key, e.g. mission.seed=3"]),
+])
+def test_bad_set(cli, tiny, override, fragments):
+    assert_user_error(cli("check", tiny, "--set", override), f"error: {tiny}: ", *fragments)
+
+
+def test_bad_set_on_the_built_in_mission(cli):
+    result = cli("run", "--set", "mission.humans=-1", "-q")
+    assert_user_error(result, "default.toml: [mission] key 'humans': -1 is below the minimum")
+
+
+@pytest.mark.parametrize("command", ["check", "run", "plugins"])
+def test_unknown_optional_plugin(cli, tiny, command):
+    args = ["plugins", "--plugins", "nope"] if command == "plugins" \
+        else [command, tiny, "--plugins", "nope"]
+    assert_user_error(cli(*args), "error: --plugins: unknown optional plugin 'nope'; available:")
+
+
+def test_real_entry_point_prints_one_line_without_traceback(tmp_path):
+    """Outside CliRunner too: the installed command's stderr is the one message."""
+    path = tmp_path / "nope.toml"
+    proc = subprocess.run([sys.executable, "-m", "ata.cli", "check", str(path)],
+                          capture_output=True, text=True,
+                          env={**os.environ, "COLUMNS": "200"})
+    assert proc.returncode == 2
+    assert proc.stdout == ""
+    assert "Traceback" not in proc.stderr
+    assert flat(proc.stderr) == f"error: {path}: no such file"
