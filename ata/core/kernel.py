@@ -67,8 +67,12 @@ class Simulation:
                 ordered.append((f"{slot}:{name}", component))
                 if slot in SLOT_HOOKS:
                     self.slot_component[slot] = component
+        # One instance may fill several slots (a policy serving initial and reallocation, one
+        # override for a whole list slot): register it once, at its first place in the order.
+        unique = [(n, c) for i, (n, c) in enumerate(ordered)
+                  if not any(c is other for _, other in ordered[:i])]
         # pluggy calls the last registered implementation first: register in reverse.
-        for plugin_name, component in reversed(ordered):
+        for plugin_name, component in reversed(unique):
             self.pm.register(component, name=plugin_name)
         self.pm.check_pending()
         self._callers: dict[str, Callable[..., Any]] = {}
@@ -77,7 +81,7 @@ class Simulation:
             component = self.slot_component[slot]
             impls = [i.plugin for i in getattr(self.pm.hook, hook_name).get_hookimpls()]
             if not any(p is component for p in impls):
-                name = getattr(mission.slots, slot)
+                name = self._component_name(slot)
                 raise MissionError("[components]", slot, f"component {name!r} cannot fill this "
                                    f"slot: it implements no {hook_name}", file=mission.source)
             self._callers[slot] = self.pm.subset_hook_caller(
@@ -88,6 +92,11 @@ class Simulation:
     @property
     def batch_size(self) -> int:
         return self.sim.batch_size
+
+    def _component_name(self, slot: str) -> str:
+        """The name of the component filling a single-choice slot (its class for an override)."""
+        component = self.slot_component[slot]
+        return getattr(component, "component_name", None) or type(component).__name__
 
     def _context(self, observed: Observation | None, truth: Observation | None,
                  recon: dict[str, np.ndarray]) -> DecisionContext:
@@ -102,7 +111,7 @@ class Simulation:
 
     def _check(self, alloc: Any, slot: str) -> Allocation:
         sim = self.sim
-        name = getattr(self.mission.slots, slot)
+        name = self._component_name(slot)
         if not isinstance(alloc, Allocation):
             raise TypeError(f"{slot} policy {name!r} returned {type(alloc).__name__}, "
                             "not an Allocation")
@@ -140,8 +149,9 @@ class Simulation:
         else:
             active = np.asarray(self._callers["condition"](ctx=ctx), dtype=bool)
             if active.shape != (sim.batch_size,):
-                raise ValueError(f"condition policy {self.mission.slots.condition!r} returned "
-                                 f"shape {active.shape}, expected ({sim.batch_size},)")
+                name = self._component_name("condition")
+                raise ValueError(f"condition policy {name!r} returned shape {active.shape}, "
+                                 f"expected ({sim.batch_size},)")
             if active.any():
                 proposed = self._check(self._callers["reallocation"](ctx=ctx, active=active),
                                        "reallocation")

@@ -104,6 +104,11 @@ class HumanModel:
         for _ in range(64):
             cb, cp = np.nonzero(t.cls_ready < t1)
             nb, nr = np.nonzero(r.nav_ready < t1)
+            # a robot that fails before its navigator could take the leg has no leg left (its
+            # failure is processed after this hook in the same tick): never start it
+            can_start = np.maximum(h.busy_until[nb, r.nav_human[nb, nr]], r.nav_ready[nb, nr])
+            alive = r.fail_time[nb, nr] > can_start
+            nb, nr = nb[alive], nr[alive]
             if cb.size == 0 and nb.size == 0:
                 return
             b = np.concatenate([cb, nb])
@@ -179,10 +184,12 @@ class HumanModel:
     def _utilisation_at(self, sim: SimState, b: np.ndarray, hh: np.ndarray,
                         start: np.ndarray) -> np.ndarray:
         """Busy share of [start - window, start] for the given pairs; every booked item ends by
-        `start`, so the busy time of a tick before it is all inside the window's range."""
+        `start`, so the busy time of a tick before it is all inside the window's range. The
+        window's first tick is the first one wholly inside it (a tick straddling its lower edge
+        is left out)."""
         h, tick, window = sim.group("humans"), sim.clock.tick_s, self.settings.window_s
         k_hi = np.floor(start / tick).astype(np.int64) + 1
-        k_lo = np.maximum(0, np.floor((start - window) / tick).astype(np.int64) + 1)
+        k_lo = np.maximum(0, np.ceil((start - window) / tick).astype(np.int64))
         idx = np.arange(sim.clock.n_ticks)
         inside = (idx >= k_lo[:, None]) & (idx < k_hi[:, None])
         busy = (h.busy_ticks[b, hh] * inside).sum(axis=1)
