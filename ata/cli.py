@@ -141,6 +141,8 @@ def render_summary(session, result) -> None:
                   f"{100 * s.get('classified_share_mean', float('nan')):.1f}%",
                   f"{s['reallocations_mean']:.2f}", f"{s['wall_s']:.1f} s")
     console.print(table)
+    for warning in result.warnings:
+        err_console.print(f"[yellow]warning:[/] {escape(warning)}", highlight=False)
 
 
 @app.command()

@@ -37,6 +37,7 @@ BUILTIN_PLUGINS = (
     "ata.plugins.conditions",
     "ata.plugins.policies.random_policy",
     "ata.plugins.policies.greedy",
+    "ata.plugins.policies.milp",
 )
 """Default-tier plugins, always loaded."""
 

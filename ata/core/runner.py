@@ -68,6 +68,7 @@ class RunResult:
     reallocations: np.ndarray
     metrics: dict[str, np.ndarray] = field(default_factory=dict)
     wall_s: float = 0.0
+    warnings: list[str] = field(default_factory=list)
 
     def rows(self) -> list[dict[str, Any]]:
         out = []
@@ -91,6 +92,7 @@ def run_batch(mission: Mission, registry: Register, scenario_ids: np.ndarray,
            "upper_bound": record.upper_bound.copy(),
            "reallocations": record.reallocated.sum(axis=1)}
     out.update({f"m:{k}": np.asarray(v, dtype=float) for k, v in record.metrics.items()})
+    out["warnings"] = list(record.warnings)
     return out
 
 
@@ -131,11 +133,11 @@ def run_mission(session: Session, progress: Callable[[int], None] | None = None,
                 if progress is not None:
                     progress(part["scenario"].size * n_epochs)
     wall = time.perf_counter() - t0
-    merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0] if k != "warnings"}
     return RunResult(scenario=merged["scenario"], total=merged["total"],
                      upper_bound=merged["upper_bound"], reallocations=merged["reallocations"],
                      metrics={k[2:]: v for k, v in merged.items() if k.startswith("m:")},
-                     wall_s=wall)
+                     wall_s=wall, warnings=[w for p in parts for w in p["warnings"]])
 
 
 def mean_ci(values: np.ndarray, z: float = 1.959964) -> tuple[float, float]:
@@ -157,6 +159,7 @@ def summarize(result: RunResult) -> dict[str, Any]:
            "wall_s": result.wall_s}
     for k, v in result.metrics.items():
         out[f"{k}_mean"] = float(np.mean(v))
+    out["warnings"] = result.warnings
     return out
 
 

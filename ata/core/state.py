@@ -172,6 +172,7 @@ class EpisodeRecord:
     allocations: np.ndarray             # (B, T, P, 3) int16: the allocation in force during epoch t
     upper_bound: np.ndarray             # (B,) the capacity-free upper bound U
     metrics: dict[str, np.ndarray] = field(default_factory=dict)   # (B,) per-scenario extras
+    warnings: list[str] = field(default_factory=list)   # for the run's summary
 
     @classmethod
     def empty(cls, batch: int, n_epochs: int, n_tasks: int) -> "EpisodeRecord":

@@ -1,0 +1,378 @@
+"""ITA-MILP: a robust initial allocation by mixed-integer linear programming (HiGHS through
+scipy.optimize.milp), in the manner of Fu et al. (T-RO 2022), with humans as one more kind of
+agent. It allocates once, at t = 0, and never reallocates. The model is in docs/milp.md.
+
+One binary variable per *option* of a POI: (robot type, navigator, classifier). Robots of one
+type are interchangeable in the model (the same speed, the same image quality, the same route
+time estimate per POI), so the MILP chooses types and a per-robot count cap bounds each type;
+our own code then gives each POI a robot of its type, in sweeps around the base so that routes
+stay compact, respecting every robot's count. Options that fail the capability redundancy
+requirement are left out of the model; so are dominated navigators (a low or medium skill human
+navigates no faster and images no better than the robot alone).
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import sparse
+from scipy.optimize import LinearConstraint, milp
+
+from ata import hookimpl
+from ata.core.settings import param
+from ata.core.state import Allocation, DecisionContext, SimState
+from ata.plugins import tables
+
+STATUS_TEXT = {0: "optimal", 1: "limit reached", 2: "infeasible", 3: "unbounded", 4: "error",
+               -1: "not solved"}
+
+
+@dataclass
+class MilpSettings:
+    """The ``[milp]`` table."""
+
+    time_limit_s: float = param(20.0, min=0.01, help="solver time limit per scenario, s")
+    node_limit: int = param(20000, min=1, help="branch-and-bound node limit per scenario "
+                            "(deterministic, unlike the time limit)")
+    mip_rel_gap: float = param(0.01, min=0.0, max=1.0, help="relative optimality gap to stop at")
+    redundancy_margin: list[float] = param([0.1, 0.05, 0.0], min=0.0, max=0.5,
+                                           help="per difficulty (low, medium, high): the "
+                                                "pessimistic success probability must reach "
+                                                "0.5 + this")
+    fatigue_sigmas: float = param(1.0, min=0.0, help="fatigue noise std devs taken off F_f in "
+                                  "the pessimistic case")
+    pessimistic_utilisation: float = param(0.85, min=0.0, max=1.0,
+                                           help="utilisation at which F_w is taken in the "
+                                                "pessimistic case")
+    human_utilisation_cap: float = param(0.65, min=0.01, max=1.0,
+                                         help="share of the horizon a human may be booked")
+    robot_utilisation_cap: float = param(0.9, min=0.01, max=1.0,
+                                         help="share of the horizon a robot's route may take")
+    tour_constant: float = param(0.7124, min=0.0, help="route length per POI is this times "
+                                 "sqrt(area / POIs per robot) (Beardwood-Halton-Hammersley)")
+    fatigue_floor: float = param(0.4, min=0.0, max=1.0, help="F_f floor assumed")
+    capture_s: float = param(3.0, min=0.0, help="capture time assumed")
+    workers: int = param(1, min=1, max=256, help="worker processes solving scenarios")
+    chunk_size: int = param(16, min=1, help="scenarios per worker task")
+
+
+@dataclass
+class ScenarioData:
+    """What the MILP of one scenario is built from: I, the working hours in S at t = 0, and the
+    mission's horizon and uncertainty level. Plain arrays, so it travels to worker processes."""
+
+    kind: np.ndarray          # (P,) estimated kind
+    diff: np.ndarray          # (P,) estimated difficulty
+    xy: np.ndarray            # (P, 2) metres
+    eta: np.ndarray           # (H,)
+    lam: np.ndarray           # (H,)
+    skill: np.ndarray         # (H,)
+    hours: np.ndarray         # (H,) working hours at t = 0
+    rtype: np.ndarray         # (R,)
+    speed: np.ndarray         # (R,) m/s
+    area_m: float
+    horizon_s: float
+    event_p: float
+    fatigue_sigma: float
+
+
+@dataclass
+class Model:
+    """The MILP of one scenario: options, objective, constraints (maximise values @ x)."""
+
+    task: np.ndarray          # (n,) POI of each option
+    rtype: np.ndarray         # (n,) robot type
+    nav: np.ndarray           # (n,) -1 auto, else human
+    cls: np.ndarray           # (n,) -1 onboard, else human
+    value: np.ndarray         # (n,) nominal expected points
+    p_pess: np.ndarray        # (n,) pessimistic success probability
+    required: np.ndarray      # (P,) the probability each POI's option must reach
+    human_time: np.ndarray    # (H, n) seconds of human h the option books
+    type_slots: np.ndarray    # (2,) POIs each robot type can take in all
+    robot_slots: np.ndarray   # (R,) POIs each robot can take
+    human_budget: float       # seconds each human may be booked
+    A: sparse.csr_matrix = field(repr=False, default=None)
+    lb: np.ndarray = field(repr=False, default=None)
+    ub: np.ndarray = field(repr=False, default=None)
+
+
+@dataclass
+class Solution:
+    triples: np.ndarray | None   # (P, 3) robot, navigator, classifier; None when it failed
+    status: int
+    objective: float
+    bound: float
+    gap: float
+    seconds: float
+    message: str
+    problems: list[str] = field(default_factory=list)
+    margin_scale: float = 1.0    # the redundancy margins' scale the model needed
+
+
+def build_model(d: ScenarioData, s: MilpSettings, margin_scale: float = 1.0) -> Model:
+    """Enumerate the options, apply the redundancy requirement (its margins scaled by
+    `margin_scale`), and assemble the constraints."""
+    P, H, R = d.kind.size, d.eta.size, d.rtype.size
+    present = np.array([np.any(d.rtype == t) for t in (tables.UAV, tables.UGV)])
+    type_speed = np.array([d.speed[d.rtype == t].mean() if present[t] else 1.0 for t in (0, 1)])
+    nav_opts = np.concatenate([[-1], np.nonzero(d.skill == 2)[0]])          # auto, high skill
+    cls_opts = np.arange(-1, H)
+    p_, t_, k_, c_ = np.meshgrid(np.arange(P), np.nonzero(present)[0], nav_opts, cls_opts,
+                                 indexing="ij")
+    p_, t_, k_, c_ = (a.ravel() for a in (p_, t_, k_, c_))
+    nav_class = np.where(k_ < 0, 1, 2)
+    kind, diff = d.kind[p_], d.diff[p_]
+    q = tables.QUALITY[t_, kind, nav_class]
+    hard = np.minimum(diff + 1, 2)
+    q_flip = tables.QUALITY[t_, 1 - kind, nav_class]
+    human = c_ >= 0
+    ch = np.maximum(c_, 0)
+
+    def success(quality, difficulty, f_f, f_w):
+        on = tables.P_RC[quality, difficulty]
+        hum = 0.5 + d.eta[ch] * f_f * f_w * d.lam[ch] * tables.F_D[quality, difficulty]
+        return np.where(human, hum, on)
+
+    f_f_nom = tables.fatigue(d.hours, s.fatigue_floor)[ch]
+    value = tables.expected_points(tables.POINTS[diff], success(q, diff, f_f_nom, 1.0))
+    # pessimistic: fatigue after a shift at the utilisation cap, less the noise the level makes
+    # plausible; a busy workload; and, with the level's probability, a harder POI of either kind
+    worn = d.hours + s.human_utilisation_cap * d.horizon_s / 3600.0
+    f_f_pess = np.maximum(0.0, tables.fatigue(worn, s.fatigue_floor)
+                          - s.fatigue_sigmas * d.fatigue_sigma)[ch]
+    f_w_pess = float(tables.workload(s.pessimistic_utilisation))
+    p_same = success(q, diff, f_f_pess, f_w_pess)
+    p_changed = np.minimum(success(q, hard, f_f_pess, f_w_pess),
+                           success(q_flip, hard, f_f_pess, f_w_pess))
+    p_pess = (1.0 - d.event_p) * p_same + d.event_p * p_changed
+
+    # redundancy: keep the options whose pessimistic success reaches the requirement; a POI
+    # that no option can reach keeps its most robust options (best effort, documented)
+    required = 0.5 + np.asarray(s.redundancy_margin, dtype=float)[d.diff] * margin_scale
+    best = np.full(P, -np.inf)
+    np.maximum.at(best, p_, p_pess)
+    required = np.minimum(required, best)
+    keep = p_pess >= required[p_] - 1e-12
+    p_, t_, k_, c_, value, p_pess, q, diff = (a[keep] for a in (p_, t_, k_, c_, value, p_pess,
+                                                                 q, diff))
+    n = p_.size
+
+    leg_m = s.tour_constant * np.sqrt(d.area_m ** 2 * R / max(P, 1))
+    per_poi_s = leg_m / type_speed + s.capture_s                        # (2,) robot seconds
+    robot_slots = np.floor(s.robot_utilisation_cap * d.horizon_s / per_poi_s[d.rtype]).astype(int)
+    type_slots = np.array([robot_slots[d.rtype == t].sum() for t in (0, 1)])
+    nav_s = leg_m / (type_speed[t_] * tables.SKILL_SPEED[2]) + s.capture_s
+    cls_s = tables.T_BAR[q, diff]
+    human_time = np.zeros((H, n))
+    cols = np.arange(n)
+    human_time[k_[k_ >= 0], cols[k_ >= 0]] += nav_s[k_ >= 0]
+    human_time[c_[c_ >= 0], cols[c_ >= 0]] += cls_s[c_ >= 0]
+    human_budget = s.human_utilisation_cap * d.horizon_s
+
+    # rows: one option per POI (P), POIs per robot type (2), seconds per human (H)
+    assign = sparse.csr_matrix((np.ones(n), (p_, cols)), shape=(P, n))
+    per_type = sparse.csr_matrix((np.ones(n), (t_, cols)), shape=(2, n))
+    A = sparse.vstack([assign, per_type, sparse.csr_matrix(human_time)]).tocsr()
+    lb = np.concatenate([np.ones(P), np.zeros(2), np.zeros(H)])
+    ub = np.concatenate([np.ones(P), type_slots.astype(float), np.full(H, human_budget)])
+    return Model(task=p_, rtype=t_, nav=k_, cls=c_, value=value, p_pess=p_pess,
+                 required=required, human_time=human_time, type_slots=type_slots,
+                 robot_slots=robot_slots, human_budget=human_budget, A=A, lb=lb, ub=ub)
+
+
+def check_choice(model: Model, chosen: np.ndarray, robot: np.ndarray, d: ScenarioData) -> list[str]:
+    """Our own check of a solution: one option per POI, redundancy, capacities. [] when fine."""
+    problems = []
+    P = model.required.size
+    counts = np.bincount(model.task[chosen], minlength=P)
+    if chosen.size != P or (counts != 1).any():
+        problems.append("not exactly one option per POI")
+        return problems
+    order = np.argsort(model.task[chosen])
+    chosen = chosen[order]
+    if (model.p_pess[chosen] < model.required - 1e-9).any():
+        problems.append("a POI's option misses the redundancy requirement")
+    used = model.human_time[:, chosen].sum(axis=1)
+    if (used > model.human_budget * (1 + 1e-9) + 1e-6).any():
+        problems.append(f"a human is booked {used.max():.0f} s > {model.human_budget:.0f} s")
+    per_robot = np.bincount(robot, minlength=d.rtype.size)
+    if (per_robot > model.robot_slots).any():
+        problems.append("a robot has more POIs than its route time allows")
+    if (d.rtype[robot] != model.rtype[chosen]).any():
+        problems.append("a POI's robot is not of the chosen type")
+    return problems
+
+
+def assign_robots(d: ScenarioData, types: np.ndarray, slots: np.ndarray) -> np.ndarray:
+    """Give each POI a robot of its chosen type: POIs sorted by angle around the base, cut into
+    consecutive runs in proportion to each robot's slots, so every robot covers a sector."""
+    robot = np.full(types.size, -1, dtype=np.int64)
+    base = np.full(2, d.area_m / 2.0)
+    angle = np.arctan2(d.xy[:, 1] - base[1], d.xy[:, 0] - base[0])
+    for t in (tables.UAV, tables.UGV):
+        pois = np.nonzero(types == t)[0]
+        robots = np.nonzero(d.rtype == t)[0]
+        if pois.size == 0:
+            continue
+        pois = pois[np.argsort(angle[pois], kind="stable")]
+        # an even share for each robot, never above its slots
+        share = np.full(robots.size, pois.size // robots.size)
+        share[: pois.size - share.sum()] += 1
+        share = np.minimum(share, slots[robots])
+        missing = pois.size - share.sum()
+        for i in range(robots.size):           # hand what is left to robots with room
+            extra = min(missing, slots[robots[i]] - share[i])
+            share[i] += extra
+            missing -= extra
+        if missing > 0:                         # cannot happen when the type's row held
+            share[-1] += missing
+        robot[pois] = np.repeat(robots, share)
+    return robot
+
+
+def solve_scenario(d: ScenarioData, s: MilpSettings) -> Solution:
+    """Build, solve and check one scenario's MILP. When the redundancy requirement makes the
+    model infeasible, its margins are relaxed (scaled by each of `RELAX_STEPS` in turn); the
+    solution records the scale it needed."""
+    t0 = time.perf_counter()
+    sol = None
+    for scale in RELAX_STEPS:
+        sol = _solve_once(d, s, scale, t0)
+        sol.margin_scale = scale
+        if sol.status != 2:          # anything but infeasible ends the ladder
+            break
+    return sol
+
+
+RELAX_STEPS = (1.0, 0.5, 0.0)
+"""Scales of the redundancy margins tried in turn when the model is infeasible."""
+
+
+def _solve_once(d: ScenarioData, s: MilpSettings, scale: float, t0: float) -> Solution:
+    model = build_model(d, s, scale)
+    n = model.value.size
+    remaining = max(s.time_limit_s - (time.perf_counter() - t0), 0.01)
+    try:
+        res = milp(-model.value, integrality=np.ones(n), bounds=(0, 1),
+                   constraints=[LinearConstraint(model.A, model.lb, model.ub)],
+                   options={"time_limit": remaining, "node_limit": s.node_limit,
+                            "mip_rel_gap": s.mip_rel_gap, "presolve": True})
+    except Exception as exc:   # a solver crash takes the documented fallback
+        return Solution(None, 4, np.nan, np.nan, np.nan, time.perf_counter() - t0, str(exc))
+    seconds = time.perf_counter() - t0
+    bound = -res.mip_dual_bound if res.mip_dual_bound is not None else np.nan
+    gap = res.mip_gap if res.mip_gap is not None else np.nan
+    if res.x is None:
+        return Solution(None, res.status, np.nan, bound, gap, seconds, res.message)
+    chosen = np.nonzero(res.x > 0.5)[0]
+    chosen = chosen[np.argsort(model.task[chosen])]
+    robot = assign_robots(d, model.rtype[chosen], model.robot_slots) if chosen.size == \
+        d.kind.size else np.zeros(0, dtype=np.int64)
+    problems = check_choice(model, chosen, robot, d)
+    if problems:
+        return Solution(None, res.status, -res.fun, bound, gap, seconds, res.message, problems)
+    triples = np.stack([robot, model.nav[chosen], model.cls[chosen]], axis=1)
+    return Solution(triples, res.status, float(-res.fun), float(bound), float(gap), seconds,
+                    res.message)
+
+
+def _solve_chunk(args: tuple) -> list[Solution]:
+    data, settings = args
+    return [solve_scenario(d, settings) for d in data]
+
+
+def scenario_data(ctx: DecisionContext, mission) -> list[ScenarioData]:
+    """Split the batch's I (and the working hours of S at t = 0) into per-scenario inputs."""
+    I, S = ctx.inherent, ctx.observed
+    area = I.extras["area_m"]
+    hours = S["humans"].col("working_time") if S is not None else \
+        np.zeros(I["humans"].features.shape[:2])
+    xy = np.stack([I["tasks"].col("x"), I["tasks"].col("y")], -1) * area[:, None, None]
+    rtype = np.where(I["robots"].col("uav") > 0.5, tables.UAV, tables.UGV)
+    return [ScenarioData(kind=I["tasks"].col("kind")[b].astype(np.int64),
+                         diff=I["tasks"].col("difficulty")[b].astype(np.int64), xy=xy[b],
+                         eta=I["humans"].col("cognitive")[b], lam=I["humans"].col("expertise")[b],
+                         skill=I["humans"].col("skill")[b].astype(np.int64), hours=hours[b],
+                         rtype=rtype[b], speed=I["robots"].col("speed")[b],
+                         area_m=float(area[b]), horizon_s=ctx.clock.horizon_s,
+                         event_p=float(mission.event_probability),
+                         fatigue_sigma=float(np.sqrt(mission.fatigue_variance)))
+            for b in range(ctx.reallocatable.shape[0])]
+
+
+class MilpPolicy:
+    """ITA-MILP; as a reallocation policy it keeps the allocation (it never reallocates)."""
+
+    Settings = MilpSettings
+
+    def __init__(self, settings: MilpSettings, mission):
+        if len(settings.redundancy_margin) != 3:
+            from ata.core.errors import MissionError
+            raise MissionError("[milp]", "redundancy_margin", "needs three margins (low, "
+                               "medium, high difficulty)", file=mission.source)
+        self.s = settings
+        self.mission = mission
+        self.solutions: list[Solution] = []
+        self.fallback: np.ndarray | None = None
+
+    def solve_all(self, data: list[ScenarioData]) -> list[Solution]:
+        """Solve every scenario, in worker processes when asked; the order is the batch's."""
+        if self.s.workers <= 1 or len(data) <= self.s.chunk_size:
+            return [solve_scenario(d, self.s) for d in data]
+        chunks = [data[i:i + self.s.chunk_size] for i in range(0, len(data), self.s.chunk_size)]
+        with ProcessPoolExecutor(max_workers=self.s.workers) as pool:
+            parts = pool.map(_solve_chunk, [(c, self.s) for c in chunks])
+            return [sol for part in parts for sol in part]
+
+    @hookimpl
+    def ata_initial_allocation(self, ctx: DecisionContext) -> Allocation:
+        from ata.plugins.policies.greedy import GreedyPolicy, plan
+
+        self.solutions = self.solve_all(scenario_data(ctx, self.mission))
+        B, P = ctx.reallocatable.shape
+        triples = np.zeros((B, P, 3), dtype=np.int64)
+        failed = np.array([sol.triples is None for sol in self.solutions])
+        for b, sol in enumerate(self.solutions):
+            if sol.triples is not None:
+                triples[b] = sol.triples
+        alloc = Allocation.from_stack(triples)
+        self.fallback = failed
+        if failed.any():
+            rows = np.nonzero(failed)[0]
+            greedy = plan(ctx.take(rows), GreedyPolicy.Settings(), np.ones((rows.size, P), bool))
+            alloc.robot[rows], alloc.navigator[rows], alloc.classifier[rows] = \
+                greedy.robot, greedy.navigator, greedy.classifier
+            first = self.solutions[rows[0]]
+            warnings.warn(f"milp: {rows.size} of {B} scenarios fell back to greedy (first: "
+                          f"{STATUS_TEXT.get(first.status, first.status)}; {first.message}; "
+                          f"{'; '.join(first.problems)})", RuntimeWarning, stacklevel=2)
+        return alloc
+
+    @hookimpl
+    def ata_reallocate(self, ctx: DecisionContext, active: np.ndarray) -> Allocation:
+        return ctx.previous
+
+    @hookimpl
+    def ata_episode_end(self, sim: SimState) -> None:
+        if not self.solutions:
+            return
+        m = sim.record.metrics
+        m["milp_status"] = np.array([sol.status for sol in self.solutions], dtype=float)
+        m["milp_objective"] = np.array([sol.objective for sol in self.solutions])
+        m["milp_bound"] = np.array([sol.bound for sol in self.solutions])
+        m["milp_gap"] = np.array([sol.gap for sol in self.solutions])
+        m["milp_solve_s"] = np.array([sol.seconds for sol in self.solutions])
+        m["milp_fallback"] = self.fallback.astype(float)
+        m["milp_margin_scale"] = np.array([sol.margin_scale for sol in self.solutions])
+        if self.fallback.any():
+            sim.record.warnings.append(f"milp: {int(self.fallback.sum())} scenario(s) fell back "
+                                       "to the greedy allocation (see milp_status)")
+
+
+@hookimpl
+def ata_register_components(register) -> None:
+    register("policy", "milp", MilpPolicy)
