@@ -147,6 +147,68 @@ def render_summary(session, result) -> None:
 
 @app.command()
 @user_errors
+def train(mission: Optional[str] = typer.Argument(
+              None, help="Training mission (TOML). Default: the built-in ATA-HRL training "
+                         "mission, setting (a), medium uncertainty."),
+          set_: Optional[List[str]] = SetOption,
+          plugins: Optional[str] = typer.Option(
+              None, "--plugins", metavar="NAME[,NAME]",
+              help="Learned parts to train: ctr (pi_C and pi_TR), aux (state reconstruction). "
+                   "Default: ctr,aux. Leaving one out trains the ablation."),
+          out: Optional[Path] = typer.Option(None, "--out", "-o", help="Run folder."),
+          resume: Optional[Path] = typer.Option(None, "--resume",
+                                                help="Resume the run in this folder.")) -> None:
+    """Train ATA-HRL (or an ablation): reconstruction, imitation warm start, REINFORCE."""
+    from ata.core import runner
+    from ata.learn import train as training
+
+    if resume is not None:
+        if mission is not None or set_:
+            err_console.print("[yellow]note:[/] --resume uses the run folder's resolved "
+                              "mission; the MISSION and --set given are ignored")
+        source = resume / "mission.resolved.toml"
+        session = runner.load_session(str(source))
+        run_dir = resume
+    else:
+        names = _split(plugins) if plugins is not None else ["ctr", "aux"]
+        overrides = training.method_overrides(names) + list(set_ or [])
+        session = runner.load_session(mission or str(training.TRAIN_MISSION), overrides,
+                                      names)
+        run_dir = out or runner.default_out_dir(session.mission).with_name(
+            "train-" + runner.default_out_dir(session.mission).name)
+    m = session.mission
+    total = training.total_steps(m)
+    columns = [TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
+               TextColumn("{task.fields[status]}"), TimeElapsedColumn(), TimeRemainingColumn()]
+    with Progress(*columns, console=Console(stderr=True)) as progress:
+        task = progress.add_task(f"train {m.settings.name}", total=total, status="")
+
+        def on_row(row: dict) -> None:
+            parts = [f"{row['phase']} {row['step']}"]
+            if row.get("samples_per_s"):
+                parts.append(f"{row['samples_per_s']} samples/s")
+            if row.get("mean_score"):
+                parts.append(f"reward {row['mean_score']}")
+            if row.get("eval_score"):
+                parts.append(f"eval {row['eval_score']}")
+            if row.get("aux_fatigue_mse"):
+                parts.append(f"fatigue mse {row['aux_fatigue_mse']}")
+            progress.update(task, advance=1 if str(row["step"]) != "0" else 0,
+                            status=" | ".join(parts))
+
+        trainer = training.Trainer(session, run_dir, resume=resume is not None, on_row=on_row)
+        progress.update(task, completed=sum(trainer.counters[k] for k in ("aux", "imitation",
+                                                                          "rl")))
+        report = trainer.run()
+    console.print(f"trained in {report['wall_s']:.0f} s of training time; best held-out "
+                  f"score {report['best_eval']:.1f}")
+    for key, value in (report.get("aux") or {}).items():
+        console.print(f"  {key}: {value:.5f}")
+    console.print(f"run folder: {run_dir} (checkpoint.pt, best.pt, log.csv)")
+
+
+@app.command()
+@user_errors
 def check(mission: str = typer.Argument(..., help="Mission file (TOML)."),
           set_: Optional[List[str]] = SetOption,
           plugins: Optional[str] = PluginsOption,

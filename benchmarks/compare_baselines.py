@@ -11,6 +11,8 @@ from __future__ import annotations
 import argparse
 import csv
 
+import numpy as np
+
 from rich.console import Console
 from rich.table import Table
 
@@ -64,7 +66,8 @@ def main() -> None:
             cells.append(f"{mean:.1f} ± {half:.1f} ({frac:.3f} U)")
             rows.append({"method": method, "level": level, "mean": mean, "ci95": half,
                          "fraction_of_u": frac, "wall_s": result.wall_s,
-                         "fallbacks": float(result.metrics.get("milp_fallback", [0]).sum())})
+                         "fallbacks": float(np.sum(result.metrics.get("milp_fallback", 0.0)))})
+            print(f"{method} {level}: {cells[-1]}  [{result.wall_s:.0f} s]", flush=True)
         table.add_row(method, *cells)
     Console(width=160).print(table)
     if args.csv:

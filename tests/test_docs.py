@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from ata.core.mission import ComponentSlots, MissionSettings
-from ata.core.registry import collect_components, get_plugin_manager
+from ata.core.mission import ComponentSlots, MissionSettings, TrainSettings
+from ata.core.registry import OPTIONAL_PLUGINS, collect_components, get_plugin_manager
 from ata.core.settings import describe
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -14,9 +14,10 @@ MISSIONS_DOC = (ROOT / "docs" / "missions.md").read_text()
 
 
 def _tables():
-    reg = collect_components(get_plugin_manager(entry_points=False))
+    reg = collect_components(get_plugin_manager(optional=OPTIONAL_PLUGINS, entry_points=False))
     yield "mission", MissionSettings
     yield "components", ComponentSlots
+    yield "train", TrainSettings
     for info in reg.components.values():
         yield info.name, getattr(info.factory, "Settings", None)
 

@@ -5,8 +5,8 @@ Usage: python tools/gen_mission_docs.py   (tests/test_docs.py checks the result)
 
 from pathlib import Path
 
-from ata.core.mission import ComponentSlots, MissionSettings
-from ata.core.registry import collect_components, get_plugin_manager
+from ata.core.mission import ComponentSlots, MissionSettings, TrainSettings
+from ata.core.registry import OPTIONAL_PLUGINS, collect_components, get_plugin_manager
 from ata.core.settings import describe
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "missions.md"
@@ -23,12 +23,21 @@ def table(cls) -> list[str]:
 
 
 def main() -> None:
-    registry = collect_components(get_plugin_manager(entry_points=False))
+    registry = collect_components(get_plugin_manager(optional=OPTIONAL_PLUGINS,
+                                                    entry_points=False))
     lines = [MARK, "", *table(MissionSettings), "", "## `[components]`", "",
-             *table(ComponentSlots), ""]
+             *table(ComponentSlots), "", "## `[train]` (`ata train` only)", "",
+             *table(TrainSettings), ""]
+    kinds: dict[str, list[str]] = {}
+    for info in registry.components.values():
+        kinds.setdefault(info.name, []).append(info.kind)
+    done = set()
     for info in sorted(registry.components.values(), key=lambda c: (c.kind, c.name)):
+        if info.name in done:
+            continue
+        done.add(info.name)
         cls = getattr(info.factory, "Settings", None)
-        lines += [f"### `[{info.name}]` ({info.kind})", ""]
+        lines += [f"### `[{info.name}]` ({', '.join(sorted(kinds[info.name]))})", ""]
         lines += (table(cls) if cls is not None else ["No settings."]) + [""]
     head = DOC.read_text().split(MARK, 1)[0]
     DOC.write_text(head + "\n".join(lines))

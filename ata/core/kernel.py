@@ -56,6 +56,7 @@ class Simulation:
         overrides = overrides or {}
         ordered: list[tuple[str, Any]] = []   # (plugin name, instance), in hook-call order
         self.slot_component: dict[str, Any] = {}
+        built: dict[str, Any] = {}            # one instance per component name and batch
         for slot, kind in SLOT_KINDS.items():
             value = getattr(mission.slots, slot)
             names = value if isinstance(value, list) else [value]
@@ -63,12 +64,15 @@ class Simulation:
                 if slot in overrides:
                     component = overrides[slot]
                 else:
-                    component = build_component(registry, mission, kind, name)
+                    if name not in built:
+                        built[name] = build_component(registry, mission, kind, name)
+                    component = built[name]
                 ordered.append((f"{slot}:{name}", component))
                 if slot in SLOT_HOOKS:
                     self.slot_component[slot] = component
-        # One instance may fill several slots (a policy serving initial and reallocation, one
-        # override for a whole list slot): register it once, at its first place in the order.
+        # One instance may fill several slots (a policy serving initial and reallocation, a
+        # component registered under two kinds, one override for a whole list slot): register
+        # it once, at its first place in the order.
         unique = [(n, c) for i, (n, c) in enumerate(ordered)
                   if not any(c is other for _, other in ordered[:i])]
         # pluggy calls the last registered implementation first: register in reverse.

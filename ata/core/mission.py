@@ -73,6 +73,33 @@ class ComponentSlots:
     reallocation: str = param("greedy", help="reallocation policy: how to reallocate")
 
 
+@dataclass
+class TrainSettings:
+    """The ``[train]`` table: hyperparameters of `ata train` (learned methods only)."""
+
+    seed: int = param(12345, min=0, help="root seed of the training scenarios (evaluation "
+                      "scenarios use other seeds)")
+    batch_size: int = param(32, min=1, max=4096, help="scenarios per training batch")
+    lr: float = param(1e-3, min=0.0, max=1.0, help="Adam learning rate")
+    entropy: float = param(0.01, min=0.0, help="entropy bonus weight")
+    grad_clip: float = param(1.0, min=0.0, help="gradient norm clip (0: none)")
+    aux_batches: int = param(8, min=0, help="rollout batches collected for the auxiliary "
+                             "reconstruction (supervised, before RL)")
+    aux_steps: int = param(400, min=0, help="supervised steps of the reconstructors")
+    imitation_steps: int = param(150, min=0, help="warm-start steps imitating the greedy "
+                                 "teacher (0: RL from scratch)")
+    rl_steps: int = param(200, min=0, help="REINFORCE iterations")
+    eval_every: int = param(25, min=1, help="evaluate on held-out scenarios every N RL steps")
+    eval_scenarios: int = param(64, min=1, help="held-out scenarios per evaluation")
+    checkpoint_every: int = param(10, min=1, help="write a checkpoint every N steps")
+    d_model: int = param(32, min=8, help="embedding width")
+    heads: int = param(4, min=1, help="attention heads")
+    layers: int = param(2, min=1, help="attention layers")
+    z_dim: int = param(4, min=1, help="cVAE latent size")
+    recon_hidden: int = param(32, min=4, help="width of the reconstruction networks")
+    threads: int = param(2, min=1, help="torch CPU threads")
+
+
 SLOT_KINDS = {"task_model": "task_model", "human_model": "human_model",
               "robot_model": "robot_model", "routing": "routing", "injectors": "injector",
               "reconstructors": "reconstructor", "initial": "policy", "condition": "condition",
@@ -87,6 +114,7 @@ class Mission:
     slots: ComponentSlots
     component_settings: dict[str, Any]   # component name -> its Settings instance (or None)
     source: str = "<built-in>"
+    train: TrainSettings = dataclasses.field(default_factory=TrainSettings)
 
     @property
     def sizes(self) -> TeamSize:
@@ -122,6 +150,7 @@ class Mission:
                                "components": settings_dict(self.slots)}
         for name, st in self.component_settings.items():
             out[name] = settings_dict(st) if st is not None else {}
+        out["train"] = settings_dict(self.train)
         return out
 
     def to_toml(self) -> str:
@@ -195,7 +224,7 @@ def validate(raw: dict[str, Any], registry: Register, source: str = "<built-in>"
 
 
 def _validate(raw: dict[str, Any], registry: Register, source: str) -> Mission:
-    for table in ("mission", "components"):
+    for table in ("mission", "components", "train"):
         if table in raw and not isinstance(raw[table], dict):
             raise MissionError(f"[{table}]", None, "must be a table")
     settings = build_settings(MissionSettings, raw.get("mission"), "[mission]")
@@ -228,7 +257,7 @@ def _validate(raw: dict[str, Any], registry: Register, source: str) -> Mission:
             info = registry.get(kind, name, f"[components] key {slot!r}")
             chosen.setdefault(name, info)
 
-    known_tables = {"mission", "components", *chosen}
+    known_tables = {"mission", "components", "train", *chosen}
     for table in raw:
         if table not in known_tables:
             raise MissionError(f"[{table}]", None, "names no chosen component; tables allowed: "
@@ -246,8 +275,9 @@ def _validate(raw: dict[str, Any], registry: Register, source: str) -> Mission:
             component_settings[name] = None
         else:
             component_settings[name] = build_settings(cls, table, f"[{name}]")
+    train = build_settings(TrainSettings, raw.get("train"), "[train]")
     return Mission(settings=settings, slots=slots, component_settings=component_settings,
-                   source=source)
+                   source=source, train=train)
 
 
 def _check_clock(s: MissionSettings) -> None:

@@ -41,8 +41,15 @@ BUILTIN_PLUGINS = (
 )
 """Default-tier plugins, always loaded."""
 
-OPTIONAL_PLUGINS: dict[str, str] = {}
-"""Optional-tier plugins (torch-heavy research parts), loaded only when named."""
+OPTIONAL_PLUGINS: dict[str, str] = {
+    "ita": "ata.plugins.policies.attention",
+    "ctr": "ata.plugins.ctr",
+    "aux": "ata.plugins.auxiliary",
+}
+"""Optional-tier plugins (the torch-based research parts of ATA-HRL), loaded only when named."""
+
+OPTIONAL_REQUIRES: dict[str, tuple[str, ...]] = {"ctr": ("ita",), "aux": ("ita",)}
+"""Optional plugins that bring others along (the full method needs its ITA policy)."""
 
 
 @dataclass(frozen=True)
@@ -68,9 +75,10 @@ class Register:
         if kind not in KINDS:
             raise ValueError(f"plugin {self._plugin}: unknown component kind {kind!r}; "
                              f"kinds: {', '.join(KINDS)}")
-        # Names are unique across kinds: a component's settings table is named after it.
+        # A name means one component (its settings table is named after it): the same factory
+        # may be registered under several kinds (a policy that also decides when), nothing else.
         for (other_kind, other_name), info in self.components.items():
-            if other_name == name:
+            if other_name == name and (other_kind == kind or info.factory is not factory):
                 raise ValueError(f"plugin {self._plugin}: component name {name!r} is already "
                                  f"registered ({other_kind}) by {info.plugin}")
         key = (kind, name)
@@ -98,7 +106,10 @@ def get_plugin_manager(*, optional: Iterable[str] = (), entry_points: bool = Tru
     pm.add_hookspecs(hookspecs)
     for module in BUILTIN_PLUGINS:
         pm.register(importlib.import_module(module), name=module)
+    wanted: list[str] = []
     for name in optional:
+        wanted += [*OPTIONAL_REQUIRES.get(name, ()), name]
+    for name in dict.fromkeys(wanted):
         if name not in OPTIONAL_PLUGINS:
             known = ", ".join(sorted(OPTIONAL_PLUGINS)) or "(none yet)"
             raise MissionError("--plugins", None, f"unknown optional plugin {name!r}; "

@@ -1,0 +1,54 @@
+"""The paper's hierarchical rewards (MODEL.md section 7), computed from an episode's record.
+
+    R_ITA = sum_t r_t - 0.2 * sum_{t >= 1, reallocated} ||a(t) - a_ITA||_F
+    R_C   = sum_t r_t + sum Delta r - 0.4 * F_realloc / T
+    R_TR  = sum_t r_t + sum Delta r - 0.2 * sum_{t reallocated} ||a(t) - a(t-1)||_F / T
+
+Delta r is, at each reallocation epoch, r at that epoch minus r at the previous reallocation
+epoch (the initial allocation, epoch 0, for the first one).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ata.core.state import Allocation, EpisodeRecord, frobenius_change
+
+
+def _alloc(record: EpisodeRecord, t: int) -> Allocation:
+    return Allocation.from_stack(record.allocations[:, t])
+
+
+def delta_performance(record: EpisodeRecord) -> np.ndarray:
+    """sum over reallocation epochs of r(t) - r(previous reallocation epoch), (B,)."""
+    r, realloc = record.r_perf, record.reallocated.copy()
+    realloc[:, 0] = False
+    T = r.shape[1]
+    epochs = np.where(realloc, np.arange(T), 0)
+    last = np.maximum.accumulate(epochs, axis=1)               # latest realloc epoch <= t
+    prev = np.concatenate([np.zeros((r.shape[0], 1), dtype=int), last[:, :-1]], axis=1)
+    deltas = r - np.take_along_axis(r, prev, axis=1)
+    return np.where(realloc, deltas, 0.0).sum(axis=1)
+
+
+def hierarchical_rewards(record: EpisodeRecord) -> dict[str, np.ndarray]:
+    """R_ITA, R_C and R_TR per scenario, plus the total team performance."""
+    B, T = record.r_perf.shape
+    total = record.r_perf.sum(axis=1)
+    realloc = record.reallocated.copy()
+    realloc[:, 0] = False
+    ita = _alloc(record, 0)
+    from_ita = np.zeros(B)
+    step_change = np.zeros(B)
+    for t in range(1, T):
+        if not realloc[:, t].any():
+            continue
+        now = _alloc(record, t)
+        from_ita += np.where(realloc[:, t], frobenius_change(now, ita), 0.0)
+        step_change += np.where(realloc[:, t], frobenius_change(now, _alloc(record, t - 1)), 0.0)
+    delta = delta_performance(record)
+    n_realloc = realloc.sum(axis=1)
+    return {"total": total,
+            "R_ITA": total - 0.2 * from_ita,
+            "R_C": total + delta - 0.4 * n_realloc / T,
+            "R_TR": total + delta - 0.2 * step_change / T}

@@ -1,0 +1,1 @@
+"""The learned parts of ATA-HRL (torch): features, networks, checkpoints, training."""
