@@ -131,6 +131,16 @@ def log_prob(logits: dict[str, torch.Tensor], triples: torch.Tensor) -> torch.Te
     return total
 
 
+def legal(logits: dict[str, torch.Tensor], triples: torch.Tensor) -> torch.Tensor:
+    """(B, P) bool: every choice of the triple is allowed by the masks (a teacher's target may
+    name, say, a robot the policy may not choose, such as a failed robot kept on a captured POI)."""
+    ok = torch.ones(triples.shape[:-1], dtype=torch.bool)
+    for j, key in enumerate(("robot", "navigator", "classifier")):
+        idx = triples[..., j] + (0 if key == "robot" else 1)
+        ok &= logits[key].gather(-1, idx[..., None])[..., 0] > NEG / 2
+    return ok
+
+
 def entropy(logits: dict[str, torch.Tensor]) -> torch.Tensor:
     """(B, P) summed entropy of the three choices."""
     total = 0.0

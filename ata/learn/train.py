@@ -375,7 +375,9 @@ class Trainer:
         if self.method.ita:
             masks = nets_masks(B, log.robot_ok[0], skill_high)
             logits = self.net.ita_logits(I, masks)
-            loss = loss - nets.log_prob(logits, torch.as_tensor(log.ita)).mean()
+            target = torch.as_tensor(log.ita)
+            ok = nets.legal(logits, target).float()
+            loss = loss - (nets.log_prob(logits, target) * ok).sum() / ok.sum().clamp(min=1)
         if self.method.ctr_condition or self.method.ctr_realloc:
             hidden = self.net.initial_hidden(B)
             for k in range(len(log.previous)):
@@ -388,8 +390,10 @@ class Trainer:
                     loss = loss + torch.nn.functional.binary_cross_entropy_with_logits(
                         cond, target) / len(log.previous)
                 if self.method.ctr_realloc and log.target:
-                    movable = torch.as_tensor(log.movable[k], dtype=torch.float32)
-                    lp = nets.log_prob(logits, torch.as_tensor(log.target[k]))
+                    target = torch.as_tensor(log.target[k])
+                    movable = torch.as_tensor(log.movable[k]) & nets.legal(logits, target)
+                    movable = movable.float()
+                    lp = nets.log_prob(logits, target)
                     loss = loss - (lp * movable).sum() / movable.sum().clamp(min=1) \
                         / len(log.previous)
         return loss
