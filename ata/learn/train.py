@@ -420,6 +420,8 @@ class Trainer:
 
     # -- phase 3: REINFORCE ------------------------------------------------------------------------
     def train_rl(self) -> None:
+        for group in self.opt.param_groups:   # fine-tuning a warm-started policy: smaller steps
+            group["lr"] = self.t.rl_lr
         while self.counters["rl"] < self.t.rl_steps:
             t0 = time.perf_counter()
             step = self.counters["rl"]
