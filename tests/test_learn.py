@@ -105,21 +105,23 @@ class Killed(Exception):
     pass
 
 
-def test_resume_after_kill_matches_an_uninterrupted_run(tmp_path):
+@pytest.mark.parametrize("phase, step", [("aux", "2"), ("rl", "1")])
+def test_resume_after_kill_matches_an_uninterrupted_run(tmp_path, phase, step):
     s = session()
     whole = T.Trainer(s, tmp_path / "whole")
     whole.run()
 
-    def kill_at_rl_1(row):
-        if row["phase"] == "rl" and str(row["step"]) == "1":
+    def kill(row):
+        if row["phase"] == phase and str(row["step"]) == step:
             raise Killed
 
-    broken = T.Trainer(s, tmp_path / "broken", on_row=kill_at_rl_1)
+    broken = T.Trainer(s, tmp_path / "broken", on_row=kill)
     with pytest.raises(Killed):
         broken.run()
     resumed = T.Trainer(load_session(str(tmp_path / "broken" / "mission.resolved.toml")),
                         tmp_path / "broken", resume=True)
-    assert resumed.counters["rl"] >= 1 or resumed.counters["imitation"] == 2
+    assert resumed.counters[phase] == int(step) - 1 or resumed.counters[phase] == int(step)
+    assert resumed.counters != whole.counters
     resumed.run()
     assert resumed.counters == whole.counters
     for (k, a), (_, b) in zip(whole.net.state_dict().items(), resumed.net.state_dict().items()):

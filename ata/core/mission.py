@@ -80,7 +80,8 @@ class TrainSettings:
     seed: int = param(12345, min=0, help="root seed of the training scenarios (evaluation "
                       "scenarios use other seeds)")
     batch_size: int = param(32, min=1, max=4096, help="scenarios per training batch")
-    lr: float = param(1e-3, min=0.0, max=1.0, help="Adam learning rate (aux and imitation)")
+    lr: float = param(1e-3, min=0.0, max=1.0, help="Adam learning rate of the imitation phase")
+    aux_lr: float = param(3e-3, min=0.0, max=1.0, help="Adam learning rate of the aux phase")
     rl_lr: float = param(1e-4, min=0.0, max=1.0, help="Adam learning rate of the RL phase")
     entropy: float = param(0.01, min=0.0, help="entropy bonus weight")
     grad_clip: float = param(1.0, min=0.0, help="gradient norm clip (0: none)")

@@ -187,6 +187,8 @@ class Trainer:
         torch.manual_seed(self.t.seed)
         self.net = ATAHRLNet(self.cfg)
         self.opt = torch.optim.Adam(self.net.parameters(), lr=self.t.lr)
+        self.aux_opt = torch.optim.Adam(list(self.net.fatigue.parameters())
+                                        + list(self.net.latency.parameters()), lr=self.t.aux_lr)
         self.gen = torch.Generator().manual_seed(self.t.seed + 1)
         self.run_dir.mkdir(parents=True, exist_ok=True)
         if resume:
@@ -199,6 +201,7 @@ class Trainer:
     # -- checkpoints ---------------------------------------------------------------------------
     def checkpoint(self) -> dict[str, Any]:
         return {"model": self.net.state_dict(), "optimizer": self.opt.state_dict(),
+                "aux_optimizer": self.aux_opt.state_dict(),
                 "rng": {"torch": torch.get_rng_state(), "sampler": self.gen.get_state()},
                 "counters": dict(self.counters), "best_eval": float(self.best_eval),
                 "wall_s": float(self.wall), "config": self.cfg.as_dict(),
@@ -218,6 +221,7 @@ class Trainer:
         self.net.load_state_dict(net.state_dict())
         try:
             self.opt.load_state_dict(data["optimizer"])
+            self.aux_opt.load_state_dict(data["aux_optimizer"])
             torch.set_rng_state(data["rng"]["torch"])
             self.gen.set_state(data["rng"]["sampler"])
             self.counters = {k: int(v) for k, v in data["counters"].items()}
@@ -330,8 +334,7 @@ class Trainer:
         if not self.method.aux or self.counters["aux"] >= self.t.aux_steps:
             return {}
         data = self.aux_data(0, max(self.t.aux_batches, 1))
-        params = list(self.net.fatigue.parameters()) + list(self.net.latency.parameters())
-        opt = torch.optim.Adam(params, lr=self.t.lr)
+        opt = self.aux_opt
         n = {"fatigue": data["fatigue_in"].shape[0], "robots": data["robots_in"].shape[0],
              "tasks": data["tasks_in"].shape[0]}
         while self.counters["aux"] < self.t.aux_steps:
