@@ -157,3 +157,23 @@ def test_corrupted_and_mismatched_checkpoints_fail_clearly(tmp_path):
     assert result.exit_code == 2
     assert "cannot be read as a checkpoint" in result.output
     assert "Traceback" not in result.output
+
+
+def test_sampled_decisions_do_not_depend_on_the_batch():
+    s = session("components.condition='ctr'")
+    torch.manual_seed(0)
+    net = nets.ATAHRLNet(T.net_config(s.mission))
+
+    def run(ids):
+        ctr = CTRPolicy(CTRPolicy.Settings(sample=True), s.mission, net=net)
+        sim = Simulation(s.mission, s.registry, ids, overrides={
+            "initial": AttentionITA(AttentionITA.Settings(sample=True), s.mission, net=net),
+            "condition": ctr, "reallocation": ctr,
+            "reconstructors": AuxReconstructor(None, s.mission, net=net)})
+        record = sim.run()
+        return record.allocations, record.total
+
+    alloc_batch, total_batch = run([3, 4, 5])
+    alloc_alone, total_alone = run([5])
+    np.testing.assert_array_equal(alloc_batch[2], alloc_alone[0])
+    assert total_batch[2] == total_alone[0]

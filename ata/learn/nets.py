@@ -9,6 +9,8 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
+import numpy as np
+
 import torch
 from torch import nn
 from torch.nn import functional as F
@@ -107,12 +109,21 @@ class AllocationHead(nn.Module):
 
 
 def choose(logits: dict[str, torch.Tensor], sample: bool,
-           generator: torch.Generator | None = None) -> torch.Tensor:
-    """(B, P, 3) triples: robot index, navigator (-1 auto), classifier (-1 onboard)."""
+           generator: torch.Generator | None = None,
+           uniforms: dict[str, np.ndarray] | None = None) -> torch.Tensor:
+    """(B, P, 3) triples: robot index, navigator (-1 auto), classifier (-1 onboard).
+
+    With `uniforms` (one array in [0, 1) per choice, shaped like its logits) the sample is
+    drawn by the Gumbel-max trick from those numbers, so that it depends on each scenario's own
+    random stream alone (evaluation); otherwise torch's generator draws it (training).
+    """
     picks = []
     for key in ("robot", "navigator", "classifier"):
         lg = logits[key]
-        if sample:
+        if sample and uniforms is not None:
+            u = torch.as_tensor(uniforms[key], dtype=lg.dtype).clamp(1e-12, 1 - 1e-12)
+            idx = (lg - torch.log(-torch.log(u))).argmax(dim=-1)
+        elif sample:
             probs = torch.softmax(lg, dim=-1)
             flat = torch.multinomial(probs.reshape(-1, probs.shape[-1]), 1, generator=generator)
             idx = flat.reshape(lg.shape[:-1])
@@ -260,10 +271,13 @@ def parameter_count(model: nn.Module) -> int:
 
 
 def bernoulli(logit: torch.Tensor, sample: bool,
-              generator: torch.Generator | None = None) -> tuple[torch.Tensor, torch.Tensor]:
-    """(decision (B,) bool, its log-probability (B,))."""
+              generator: torch.Generator | None = None,
+              uniform: np.ndarray | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+    """(decision (B,) bool, its log-probability (B,)); `uniform` as in `choose`."""
     p = torch.sigmoid(logit)
-    if sample:
+    if sample and uniform is not None:
+        decide = torch.as_tensor(uniform, dtype=p.dtype) < p
+    elif sample:
         decide = torch.rand(p.shape, generator=generator) < p
     else:
         decide = p > 0.5

@@ -259,16 +259,18 @@ class Trainer:
         return log
 
     def student_rollout(self, ids: np.ndarray, mission=None, sample: bool = True):
-        """Run the students; returns (record, recorder)."""
+        """Run the students; returns (record, recorder). Training rollouts (sample=True) record
+        log-probabilities; evaluation rollouts sample from each scenario's own stream, as the
+        shipped missions do (``sample = true``)."""
         mission = mission or self._training_mission()
         recorder = Recorder() if sample else None
         overrides = {}
         if self.method.ita:
-            overrides["initial"] = AttentionITA(AttentionITA.Settings(sample=sample), mission,
+            overrides["initial"] = AttentionITA(AttentionITA.Settings(sample=True), mission,
                                                 net=self.net, recorder=recorder,
                                                 generator=self.gen)
         if self.method.ctr_condition or self.method.ctr_realloc:
-            ctr = CTRPolicy(CTRPolicy.Settings(sample=sample), mission, net=self.net,
+            ctr = CTRPolicy(CTRPolicy.Settings(sample=True), mission, net=self.net,
                             recorder=recorder, generator=self.gen)
             if self.method.ctr_condition:
                 overrides["condition"] = ctr
@@ -281,7 +283,8 @@ class Trainer:
         return record, recorder
 
     def evaluate(self) -> float:
-        """Mean total team performance of the mode policy on held-out scenarios."""
+        """Mean total team performance on held-out scenarios (sampled decisions, each scenario
+        from its own random stream)."""
         mission = self.mission.replace(seed=self.t.seed + EVAL_SEED_OFFSET)
         with torch.no_grad():
             record, _ = self.student_rollout(np.arange(self.t.eval_scenarios), mission,

@@ -22,6 +22,7 @@ from ata.core.state import Allocation, DecisionContext
 from ata.learn import nets
 from ata.learn.features import inherent_features, masks_for, state_features, to_tensors
 from ata.learn.runtime import Recorder, load_net
+from ata.plugins.policies.attention import scenario_uniforms
 
 
 def reconstructed_features(ctx: DecisionContext) -> dict[str, np.ndarray]:
@@ -80,8 +81,9 @@ class CTRPolicy:
     def ata_should_reallocate(self, ctx: DecisionContext) -> np.ndarray:
         cond, _, _ = self._step(ctx)
         with torch.set_grad_enabled(self.training):
-            decide, logp = nets.bernoulli(cond, self.settings.sample or self.training,
-                                          self.generator)
+            decide, logp = nets.bernoulli(
+                cond, self.settings.sample or self.training, self.generator,
+                None if self.training else ctx.rng.uniform("ctr.condition", ctx.epoch))
             if self.training:
                 p = torch.sigmoid(cond)
                 ent = -(p * torch.log(p + 1e-9) + (1 - p) * torch.log(1 - p + 1e-9))
@@ -93,7 +95,9 @@ class CTRPolicy:
     def ata_reallocate(self, ctx: DecisionContext, active: np.ndarray) -> Allocation:
         _, logits, _ = self._step(ctx)
         with torch.set_grad_enabled(self.training):
-            triples = nets.choose(logits, self.settings.sample or self.training, self.generator)
+            triples = nets.choose(logits, self.settings.sample or self.training, self.generator,
+                                  None if self.training else scenario_uniforms(ctx, "ctr",
+                                                                               logits))
             if self.training:
                 movable = torch.as_tensor(ctx.reallocatable & active[:, None])
                 lp = nets.log_prob(logits, triples)

@@ -21,6 +21,13 @@ from ata.learn.features import inherent_features, masks_for, to_tensors
 from ata.learn.runtime import Recorder, load_net
 
 
+def scenario_uniforms(ctx: DecisionContext, stream: str,
+                      logits: dict[str, torch.Tensor]) -> dict[str, np.ndarray]:
+    """Per-scenario uniforms for sampling a choice at this epoch (batch-independent)."""
+    return {key: ctx.rng.uniform(f"{stream}.{key}", ctx.epoch, tuple(lg.shape[1:]))
+            for key, lg in logits.items()}
+
+
 class AttentionITA:
     """Initial allocation from the attention network; as a reallocation policy it keeps the
     allocation (an ITA-only method)."""
@@ -46,7 +53,9 @@ class AttentionITA:
             feats = to_tensors(inherent_features(ctx.inherent))
             masks = masks_for(ctx.inherent, None)
             logits = self.net.ita_logits(feats, masks)
-            triples = nets.choose(logits, self.settings.sample or training, self.generator)
+            triples = nets.choose(logits, self.settings.sample or training, self.generator,
+                                  None if training else scenario_uniforms(ctx, "attention",
+                                                                          logits))
             if training:
                 self.recorder.ita_logp = nets.log_prob(logits, triples).sum(1)
                 self.recorder.ita_entropy = nets.entropy(logits).mean(1)
