@@ -17,6 +17,7 @@ import time
 from rich.console import Console
 from rich.table import Table
 
+from ata.core.runner import BASELINE_MISSION
 from ata.core.runner import load_session, run_mission
 
 CONFIGS = {
@@ -27,7 +28,7 @@ CONFIGS = {
 
 def measure(setting: str, extra: list[str], scenarios: int, batch: int) -> tuple[float, float]:
     """(wall seconds, scenario-epochs per second) of one run."""
-    session = load_session(None, [f"mission.setting='{setting}'", f"mission.scenarios={scenarios}",
+    session = load_session(str(BASELINE_MISSION), [f"mission.setting='{setting}'", f"mission.scenarios={scenarios}",
                                   f"mission.batch_size={batch}", "mission.workers=1", *extra])
     t0 = time.perf_counter()
     run_mission(session)

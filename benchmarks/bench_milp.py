@@ -14,6 +14,7 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
+from ata.core.runner import BASELINE_MISSION
 from ata.core.kernel import Simulation
 from ata.core.runner import load_session
 from ata.core.state import Observation
@@ -30,7 +31,7 @@ def main() -> None:
                 "gap worst", "optimal", "limit hit", "relaxed redundancy", "failed"):
         table.add_column(col, justify="right")
     for setting in ("a", "b"):
-        session = load_session(None, [f"mission.setting='{setting}'", f"mission.seed={args.seed}",
+        session = load_session(str(BASELINE_MISSION), [f"mission.setting='{setting}'", f"mission.seed={args.seed}",
                                       f"mission.scenarios={args.scenarios}",
                                       "components.initial='milp'", "components.condition='never'",
                                       "components.reallocation='milp'"])

@@ -15,6 +15,7 @@ import argparse
 from rich.console import Console
 from rich.table import Table
 
+from ata.core.runner import BASELINE_MISSION
 from ata.core.runner import load_session, run_mission
 
 METHODS = {
@@ -38,7 +39,7 @@ def main() -> None:
                 "robot failure rate (p = 0.2)", "attribute change rate (p = 0.2)", "score"):
         table.add_column(col, justify="right" if col != "method" else "left")
     for name, extra in METHODS.items():
-        session = load_session(None, [f"mission.scenarios={args.scenarios}",
+        session = load_session(str(BASELINE_MISSION), [f"mission.scenarios={args.scenarios}",
                                       f"mission.seed={args.seed}", "mission.setting='a'",
                                       "mission.uncertainty='medium'", *extra])
         m = session.mission

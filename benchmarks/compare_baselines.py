@@ -16,6 +16,7 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
+from ata.core.runner import BASELINE_MISSION
 from ata.core.runner import load_session, mean_ci, run_mission
 
 METHODS = {
@@ -50,7 +51,7 @@ def main() -> None:
     for method in methods:
         cells = []
         for level in LEVELS:
-            session = load_session(None, [f"mission.setting='{args.setting}'",
+            session = load_session(str(BASELINE_MISSION), [f"mission.setting='{args.setting}'",
                                           f"mission.scenarios={args.scenarios}",
                                           f"mission.seed={args.seed}",
                                           f"mission.uncertainty='{level}'",

@@ -16,7 +16,7 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from ata.core.runner import load_session, mean_ci, run_mission
+from ata.core.runner import BASELINE_MISSION, load_session, mean_ci, run_mission
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "missions"
 METHODS = {
@@ -42,7 +42,7 @@ def main() -> None:
     for name, (path, extra) in METHODS.items():
         if args.skip_milp and name == "ITA-MILP":
             continue
-        session = load_session(str(path) if path else None,
+        session = load_session(str(path) if path else str(BASELINE_MISSION),
                                [f"mission.scenarios={args.scenarios}", f"mission.seed={args.seed}",
                                 "mission.setting='a'", f"mission.uncertainty='{args.uncertainty}'",
                                 "mission.batch_size=500", *extra])

@@ -18,6 +18,7 @@ import math
 import numpy as np
 import pytest
 
+from ata.core.runner import BASELINE_MISSION
 from ata import hookimpl
 from ata.core.kernel import Simulation
 from ata.core.runner import load_session
@@ -73,7 +74,7 @@ class Scripted(Fixed):
 def make_sim(triples, *, humans=1, robots=1, tasks=1, batch=1, condition="never",
              reallocation=None):
     """A traced simulation of `batch` scenarios, reset, with no uncertainty at all."""
-    s = load_session(None, ["mission.setting='custom'", f"mission.humans={humans}",
+    s = load_session(str(BASELINE_MISSION), ["mission.setting='custom'", f"mission.humans={humans}",
                             f"mission.robots={robots}", f"mission.tasks={tasks}",
                             "mission.uncertainty='none'", f"mission.scenarios={batch}",
                             f"mission.batch_size={batch}", f"components.condition='{condition}'"])

@@ -13,6 +13,7 @@ import math
 import numpy as np
 import pytest
 
+from ata.core.runner import BASELINE_MISSION
 from ata import hookimpl
 from ata.core.kernel import Simulation
 from ata.core.runner import load_session
@@ -60,7 +61,7 @@ class Condition:
 
 
 def session(*, humans=1, robots=1, tasks=2, batch=1, condition="never", extra=()):
-    return load_session(None, ["mission.setting='custom'", f"mission.humans={humans}",
+    return load_session(str(BASELINE_MISSION), ["mission.setting='custom'", f"mission.humans={humans}",
                                f"mission.robots={robots}", f"mission.tasks={tasks}",
                                "mission.uncertainty='none'", f"mission.scenarios={batch}",
                                f"mission.batch_size={batch}", f"components.condition='{condition}'",

@@ -6,6 +6,7 @@ import itertools
 import numpy as np
 import pytest
 
+from ata.core.runner import BASELINE_MISSION
 from ata.core.kernel import Simulation
 from ata.core.runner import load_session, run_mission
 from ata.core.state import Observation
@@ -109,7 +110,7 @@ def _context(session, ids):
 
 
 def test_allocations_meet_redundancy_and_capacity():
-    session = load_session(None, ["mission.scenarios=6"] + MILP_SLOTS)
+    session = load_session(str(BASELINE_MISSION), ["mission.scenarios=6"] + MILP_SLOTS)
     ctx = _context(session, list(range(6)))
     settings = session.mission.component_settings["milp"]
     for d in M.scenario_data(ctx, session.mission):
@@ -135,7 +136,7 @@ def test_allocations_meet_redundancy_and_capacity():
 
 def test_infeasible_instance_falls_back_to_greedy_with_a_warning():
     # no route time at all for any robot: infeasible at every redundancy scale
-    session = load_session(None, ["mission.scenarios=3", "mission.batch_size=3",
+    session = load_session(str(BASELINE_MISSION), ["mission.scenarios=3", "mission.batch_size=3",
                                   "milp.robot_utilisation_cap=0.01"] + MILP_SLOTS)
     with pytest.warns(RuntimeWarning, match="fell back to greedy"):
         result = run_mission(session)
@@ -147,7 +148,7 @@ def test_infeasible_instance_falls_back_to_greedy_with_a_warning():
 
 
 def test_timed_out_instance_is_recorded_and_still_legal():
-    session = load_session(None, ["mission.scenarios=2", "mission.batch_size=2",
+    session = load_session(str(BASELINE_MISSION), ["mission.scenarios=2", "mission.batch_size=2",
                                   "mission.setting='b'", "milp.time_limit_s=0.01"] + MILP_SLOTS)
     with pytest.warns(RuntimeWarning):
         result = run_mission(session)
@@ -159,7 +160,7 @@ def test_timed_out_instance_is_recorded_and_still_legal():
 
 def test_same_results_with_any_number_of_workers():
     base = ["mission.scenarios=4", "mission.batch_size=4", "milp.chunk_size=1"] + MILP_SLOTS
-    one = run_mission(load_session(None, base + ["milp.workers=1"]))
-    two = run_mission(load_session(None, base + ["milp.workers=2"]))
+    one = run_mission(load_session(str(BASELINE_MISSION), base + ["milp.workers=1"]))
+    two = run_mission(load_session(str(BASELINE_MISSION), base + ["milp.workers=2"]))
     np.testing.assert_array_equal(one.total, two.total)
     np.testing.assert_array_equal(one.metrics["milp_objective"], two.metrics["milp_objective"])

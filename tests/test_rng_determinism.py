@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from ata.core.runner import BASELINE_MISSION
 from ata.core.rng import BatchRNG, scenario_keys, stream_id
 from ata.core.runner import load_session, run_mission
 
@@ -113,7 +114,7 @@ BASE = [f"mission.scenarios={N}", "mission.uncertainty='high'"]
 
 
 def run(*extra: str, workers: int | None = None):
-    return run_mission(load_session(None, BASE + list(extra)), workers=workers)
+    return run_mission(load_session(str(BASELINE_MISSION), BASE + list(extra)), workers=workers)
 
 
 @pytest.fixture(scope="module")

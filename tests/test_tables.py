@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from ata.core.runner import BASELINE_MISSION
 from ata.core.kernel import Simulation
 from ata.core.mission import TEAM_SETTINGS
 from ata.core.runner import load_session
@@ -228,14 +229,14 @@ def test_team_settings_and_clock():
     c = Clock()
     assert (c.tick_s, c.epoch_s, c.horizon_s, c.n_epochs, c.ticks_per_epoch) == \
         (10.0, 60.0, 1800.0, 30, 6)
-    m = load_session(None, []).mission
+    m = load_session(str(BASELINE_MISSION), []).mission
     assert m.clock.n_epochs == 30 and m.sizes.humans == 6 and m.sizes.tasks == 60
 
 
 def test_sampled_scenarios_follow_section_1():
     """Humans: theta ~ U(0, pi/4), eta = sin(theta_c), skill band from theta_s; robots: half
     UAVs at 8 m/s, half UGVs at 3 m/s; POI points by estimated difficulty."""
-    s = load_session(None, ["mission.scenarios=50", "mission.batch_size=50"])
+    s = load_session(str(BASELINE_MISSION), ["mission.scenarios=50", "mission.batch_size=50"])
     sim = Simulation(s.mission, s.registry, np.arange(50))
     inherent = sim.reset()
     h = sim.sim.group("humans")
@@ -257,7 +258,7 @@ def test_sampled_scenarios_follow_section_1():
 # --- the upper bound U ---------------------------------------------------------------------------
 
 def _tiny_sim():
-    s = load_session(None, ["mission.setting='custom'", "mission.humans=2", "mission.robots=2",
+    s = load_session(str(BASELINE_MISSION), ["mission.setting='custom'", "mission.humans=2", "mission.robots=2",
                             "mission.tasks=3", "mission.scenarios=2", "mission.batch_size=2"])
     sim = Simulation(s.mission, s.registry, np.arange(2))
     sim.reset()

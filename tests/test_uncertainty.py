@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from ata.core.runner import BASELINE_MISSION
 from ata.core.kernel import Simulation
 from ata.core.mission import UNCERTAINTY_LEVELS
 from ata.core.runner import load_session
@@ -33,7 +34,7 @@ def build(level: str | None, extra: list[str] = (), batch: int = B, epochs: int 
                  "components.initial='random'", "components.condition='never'"]
     if level is not None:
         overrides.append(f"mission.uncertainty='{level}'")
-    s = load_session(None, overrides + list(extra))
+    s = load_session(str(BASELINE_MISSION), overrides + list(extra))
     sim = Simulation(s.mission, s.registry, np.arange(batch))
     inherent = sim.reset()
     tasks = sim.sim.group("tasks")
@@ -87,7 +88,7 @@ def other_vars(level: str) -> list[float]:
 def test_level_table_resolves_into_the_injectors(level):
     expected = {"none": (0.0, 0.0), **LEVELS}[level]
     assert UNCERTAINTY_LEVELS[level] == expected
-    s = load_session(None, [f"mission.uncertainty='{level}'", "mission.scenarios=2",
+    s = load_session(str(BASELINE_MISSION), [f"mission.uncertainty='{level}'", "mission.scenarios=2",
                             "mission.batch_size=2"])
     assert (s.mission.fatigue_variance, s.mission.event_probability) == expected
     sim = Simulation(s.mission, s.registry, np.arange(2))
@@ -299,7 +300,7 @@ def test_per_injector_settings_override_level():
 
 
 def test_robot_failure_setting_and_custom_level():
-    s = load_session(None, ["mission.uncertainty='custom'", "mission.fatigue_variance=0.02",
+    s = load_session(str(BASELINE_MISSION), ["mission.uncertainty='custom'", "mission.fatigue_variance=0.02",
                             "mission.event_probability=0.3", "robot_failure.probability=0.7",
                             "mission.scenarios=1000", "mission.batch_size=1000"])
     sim = Simulation(s.mission, s.registry, np.arange(1000))

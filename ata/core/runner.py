@@ -24,6 +24,9 @@ from ata.core.mission import Mission
 from ata.core.registry import Register, collect_components, get_plugin_manager
 
 BUILTIN_MISSION = Path(__file__).resolve().parent.parent / "missions" / "default.toml"
+"""`ata run`'s default: the full ATA-HRL method with its shipped weights."""
+BASELINE_MISSION = BUILTIN_MISSION.with_name("greedy.toml")
+"""The greedy reference mission, the base that tests and benchmarks override."""
 
 
 @dataclass
