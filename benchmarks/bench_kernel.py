@@ -3,7 +3,7 @@
 Usage: python benchmarks/bench_kernel.py [--single 20] [--batch 500]
 
 Prints, for each setting and each greedy configuration (greedy initial allocation alone, and
-with event-triggered greedy reallocation, the default mission), the throughput at batch size 1
+with event-triggered greedy reallocation, ata/missions/greedy.toml), the throughput at batch size 1
 (over `--single` scenarios run one at a time) and at batch size `--batch` (one batch), their
 ratio, and the wall time of the whole batch. Ratios are taken within one run: this machine is
 shared and noisy, so compare ratios, not absolute times across runs.
