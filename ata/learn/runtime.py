@@ -14,6 +14,7 @@ from typing import Any
 import torch
 
 from ata.core.errors import MissionError
+from ata.core.settings import param
 from ata.learn.nets import ATAHRLNet, NetConfig
 
 WEIGHTS = Path(__file__).resolve().parent.parent / "weights"
@@ -88,3 +89,27 @@ class Recorder:
     cond_entropy: list[torch.Tensor] = field(default_factory=list)
     tr_logp: list[torch.Tensor] = field(default_factory=list)       # per epoch (B,)
     tr_entropy: list[torch.Tensor] = field(default_factory=list)
+
+
+class LearnedComponent:
+    """Base of the components that decide with the network: its settings, and the live network,
+    recorder and sampler a trainer hands in (a recorder switches on training mode)."""
+
+    @dataclass
+    class Settings:
+        checkpoint: str = param("builtin:ata_hrl_a", help="trained weights: a path or "
+                                "builtin:NAME")
+        sample: bool = param(False, help="sample decisions (each scenario from its own random "
+                             "stream) instead of taking the mode")
+
+    def __init__(self, settings: "LearnedComponent.Settings", mission: Any,
+                 net: ATAHRLNet | None = None, recorder: Recorder | None = None,
+                 generator: torch.Generator | None = None):
+        self.settings = settings
+        self.net = net if net is not None else load_net(settings.checkpoint)
+        self.recorder = recorder
+        self.generator = generator
+
+    @property
+    def training(self) -> bool:
+        return self.recorder is not None

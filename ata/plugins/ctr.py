@@ -11,17 +11,14 @@ With ``condition = "always"`` pi_TR runs every epoch (the w/o.C ablation).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import torch
 
 from ata import hookimpl
-from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext
 from ata.learn import nets
 from ata.learn.features import inherent_features, masks_for, state_features, to_tensors
-from ata.learn.runtime import Recorder, load_net
+from ata.learn.runtime import LearnedComponent
 from ata.plugins.policies.attention import scenario_uniforms
 
 
@@ -35,29 +32,14 @@ def reconstructed_features(ctx: DecisionContext) -> dict[str, np.ndarray]:
     return feats
 
 
-class CTRPolicy:
+class CTRPolicy(LearnedComponent):
     """pi_C and pi_TR on one GRU state; the state advances once per epoch."""
 
-    @dataclass
-    class Settings:
-        checkpoint: str = param("builtin:ata_hrl_a", help="trained weights: a path or "
-                                "builtin:NAME")
-        sample: bool = param(False, help="sample decisions instead of taking the mode")
-
-    def __init__(self, settings: "CTRPolicy.Settings", mission,
-                 net: nets.ATAHRLNet | None = None, recorder: Recorder | None = None,
-                 generator: torch.Generator | None = None):
-        self.settings = settings
-        self.net = net if net is not None else load_net(settings.checkpoint)
-        self.recorder = recorder
-        self.generator = generator
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
         self.hidden: torch.Tensor | None = None
         self.epoch = -1
         self.out = None
-
-    @property
-    def training(self) -> bool:
-        return self.recorder is not None
 
     def _step(self, ctx: DecisionContext):
         """Advance the GRU to this epoch (once), caching the heads' outputs."""

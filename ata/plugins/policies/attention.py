@@ -8,17 +8,14 @@ team size works, so one network serves settings (a) and (b).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import torch
 
 from ata import hookimpl
-from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext
 from ata.learn import nets
 from ata.learn.features import inherent_features, masks_for, to_tensors
-from ata.learn.runtime import Recorder, load_net
+from ata.learn.runtime import LearnedComponent
 
 
 def scenario_uniforms(ctx: DecisionContext, stream: str,
@@ -28,27 +25,13 @@ def scenario_uniforms(ctx: DecisionContext, stream: str,
             for key, lg in logits.items()}
 
 
-class AttentionITA:
+class AttentionITA(LearnedComponent):
     """Initial allocation from the attention network; as a reallocation policy it keeps the
     allocation (an ITA-only method)."""
 
-    @dataclass
-    class Settings:
-        checkpoint: str = param("builtin:ata_hrl_a", help="trained weights: a path or "
-                                "builtin:NAME")
-        sample: bool = param(False, help="sample the allocation instead of taking the mode")
-
-    def __init__(self, settings: "AttentionITA.Settings", mission,
-                 net: nets.ATAHRLNet | None = None, recorder: Recorder | None = None,
-                 generator: torch.Generator | None = None):
-        self.settings = settings
-        self.net = net if net is not None else load_net(settings.checkpoint)
-        self.recorder = recorder
-        self.generator = generator
-
     @hookimpl
     def ata_initial_allocation(self, ctx: DecisionContext) -> Allocation:
-        training = self.recorder is not None
+        training = self.training
         with torch.set_grad_enabled(training):
             feats = to_tensors(inherent_features(ctx.inherent))
             masks = masks_for(ctx.inherent, None)

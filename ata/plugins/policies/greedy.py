@@ -113,7 +113,6 @@ def _plan(ctx: DecisionContext, s: "GreedyPolicy.Settings", open_: np.ndarray) -
     # is at b * K in the flattened array (1-D takes are far cheaper than 2-D fancy indexing)
     p_rc, t_bar, quality = tables.P_RC.ravel(), tables.T_BAR.ravel(), tables.QUALITY.ravel()
     row12 = (b_all * 12)[:, None]
-    rowH = (b_all * H)[:, None]
     kind3 = kind * 3
     points12 = np.tile(tables.POINTS, 4)
     tx, ty = t_xy[..., 0] * area, t_xy[..., 1] * area
