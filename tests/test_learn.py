@@ -65,10 +65,10 @@ def test_one_network_serves_both_settings_with_masks(setting, sizes):
     assert ((triples[..., 1] == -1) | high.gather(1, triples[..., 1].clamp(min=0))).all()
 
 
-def test_reconstructors_beat_the_noisy_and_stale_observations():
+def test_reconstructors_beat_the_noisy_and_stale_observations(tmp_path):
     s = session("train.aux_batches=2", "train.aux_steps=150", "train.batch_size=8",
                 "train.recon_hidden=16", "train.lr=0.003", "mission.uncertainty='high'")
-    trainer = T.Trainer(s, "/tmp/ata-test-aux", resume=False)
+    trainer = T.Trainer(s, tmp_path, resume=False)
     before = trainer.aux_report()
     trainer.train_aux()
     after = trainer.aux_report()            # held-out scenarios, not trained on
