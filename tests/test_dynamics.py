@@ -18,6 +18,7 @@ import math
 import numpy as np
 import pytest
 
+from _support import assert_trace
 from ata.core.runner import BASELINE_MISSION
 from ata import hookimpl
 from ata.core.kernel import Simulation
@@ -127,18 +128,6 @@ def observed_after(sim, n):
     while sim.sim.epoch <= n:
         sim.step_epoch()
     return sim.last_context.observed
-
-
-def assert_trace(actual, expected):
-    """Events equal one by one; floats to 1e-9 s."""
-    assert len(actual) == len(expected), f"trace {actual}\n  expected {expected}"
-    for a, e in zip(actual, expected):
-        assert len(a) == len(e), f"{a} != {e}"
-        for x, y in zip(a, e):
-            if isinstance(y, float):
-                assert x == pytest.approx(y, rel=1e-12, abs=1e-9), f"{a} != {e}"
-            else:
-                assert x == y and type(x) is type(y), f"{a} != {e}"
 
 
 def perf(sim, b=0):

@@ -13,6 +13,7 @@ import math
 import numpy as np
 import pytest
 
+from _support import assert_trace
 from ata.core.runner import BASELINE_MISSION
 from ata import hookimpl
 from ata.core.kernel import Simulation
@@ -84,18 +85,6 @@ def place(sim, tasks, types=None):
     types = [0] * r.type.shape[1] if types is None else types
     r.type[:] = types
     r.speed[:] = np.where(np.asarray(types) == 0, 8.0, 3.0)
-
-
-def assert_trace(actual, expected):
-    """Events equal one by one; floats to 1e-9 s."""
-    assert len(actual) == len(expected), f"trace {actual}\n  expected {expected}"
-    for a, e in zip(actual, expected):
-        assert len(a) == len(e), f"{a} != {e}"
-        for x, y in zip(a, e):
-            if isinstance(y, float):
-                assert x == pytest.approx(y, rel=1e-12, abs=1e-9), f"{a} != {e}"
-            else:
-                assert x == y and type(x) is type(y), f"{a} != {e}"
 
 
 # --- hook order -----------------------------------------------------------------------------------

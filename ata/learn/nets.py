@@ -266,10 +266,6 @@ class ATAHRLNet(nn.Module):
         return torch.zeros(batch, self.cfg.d_model)
 
 
-def parameter_count(model: nn.Module) -> int:
-    return sum(p.numel() for p in model.parameters())
-
-
 def bernoulli(logit: torch.Tensor, sample: bool,
               generator: torch.Generator | None = None,
               uniform: np.ndarray | None = None) -> tuple[torch.Tensor, torch.Tensor]:

@@ -379,7 +379,7 @@ class Trainer:
         B = log.ita.shape[0]
         skill_high = torch.as_tensor(log.inherent["humans"][..., 4] > 0.5)
         if self.method.ita:
-            masks = nets_masks(B, log.robot_ok[0], skill_high)
+            masks = nets_masks(log.robot_ok[0], skill_high)
             logits = self.net.ita_logits(I, masks)
             target = torch.as_tensor(log.ita)
             ok = nets.legal(logits, target).float()
@@ -387,7 +387,7 @@ class Trainer:
         if self.method.ctr_condition or self.method.ctr_realloc:
             hidden = self.net.initial_hidden(B)
             for k in range(len(log.previous)):
-                masks = nets_masks(B, log.robot_ok[k + 1], skill_high)
+                masks = nets_masks(log.robot_ok[k + 1], skill_high)
                 cond, logits, hidden = self.net.ctr_step(
                     I, to_tensors(log.raw[k + 1]), to_tensors(log.recon[k + 1]),
                     torch.as_tensor(log.previous[k]), hidden, masks)
@@ -498,7 +498,7 @@ class Trainer:
                 "counters": dict(self.counters)}
 
 
-def nets_masks(B: int, robot_ok: np.ndarray, skill_high: torch.Tensor):
+def nets_masks(robot_ok: np.ndarray, skill_high: torch.Tensor):
     from ata.learn.features import Masks
     return Masks(robot=torch.as_tensor(robot_ok), human=torch.ones_like(skill_high),
                  navigator=skill_high)
