@@ -100,6 +100,31 @@ class TrainSettings:
     z_dim: int = param(4, min=1, help="cVAE latent size")
     recon_hidden: int = param(32, min=4, help="width of the reconstruction networks")
     threads: int = param(2, min=1, help="torch CPU threads")
+    # TR-POMDP's decentralised DQN agents (`ata train --plugins trp`)
+    dqn_steps: int = param(300, min=0, help="DQN iterations: each rolls out batch_size "
+                           "episodes with epsilon-greedy agents, then makes dqn_updates steps")
+    dqn_updates: int = param(32, min=1, help="gradient steps per DQN iteration")
+    dqn_lr: float = param(1e-3, min=0.0, max=1.0, help="Adam learning rate of the agents")
+    dqn_gamma: float = param(0.8, min=0.0, max=1.0, help="discount per decision epoch")
+    dqn_buffer: int = param(30000, min=64, help="replay buffer capacity, transitions per "
+                            "member kind")
+    dqn_minibatch: int = param(256, min=1, help="transitions per gradient step")
+    dqn_target_sync: int = param(50, min=1, help="gradient steps between copies of the "
+                                 "online networks into the target networks")
+    eps_start: float = param(1.0, min=0.0, max=1.0, help="epsilon of the first DQN iteration")
+    eps_end: float = param(0.05, min=0.0, max=1.0, help="epsilon after the decay")
+    eps_decay_steps: int = param(200, min=1, help="DQN iterations of linear epsilon decay")
+    dqn_k: int = param(4, min=1, help="candidate POIs per agent (and roles a human may "
+                       "release)")
+    dqn_hidden: int = param(64, min=4, help="width of the agents' Q-networks")
+    reward_scale: float = param(20.0, min=1e-6, help="team points per unit of agent reward")
+    load_overload: float = param(0.5, min=0.0, help="load management: penalty per unit of "
+                                 "overload (human utilisation above human_load_cap, robots "
+                                 "holding more than 1.5 fair shares of the open POIs)")
+    load_use: float = param(0.02, min=0.0, help="load management: penalty per non-idle "
+                            "action (discourages needless changes)")
+    human_load_cap: float = param(0.65, min=0.0, max=0.99, help="utilisation above which a "
+                                  "human counts as overloaded")
 
 
 SLOT_KINDS = {"task_model": "task_model", "human_model": "human_model",

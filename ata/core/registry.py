@@ -45,8 +45,9 @@ OPTIONAL_PLUGINS: dict[str, str] = {
     "ita": "ata.plugins.policies.attention",
     "ctr": "ata.plugins.ctr",
     "aux": "ata.plugins.auxiliary",
+    "trp": "ata.plugins.tr_pomdp",
 }
-"""Optional-tier plugins (the torch-based research parts of ATA-HRL), loaded only when named."""
+"""Optional-tier plugins (the torch-based learned methods), loaded only when named."""
 
 OPTIONAL_REQUIRES: dict[str, tuple[str, ...]] = {"ctr": ("ita",), "aux": ("ita",)}
 """Optional plugins that bring others along (the full method needs its ITA policy)."""

@@ -52,8 +52,12 @@ TRAIN_MISSION = Path(__file__).resolve().parent.parent / "missions" / "train_ata
 EVAL_SEED_OFFSET = 1_000_003
 """Held-out evaluation during training uses root seed train.seed + this."""
 
+TRP_MISSION = TRAIN_MISSION.with_name("train_tr_pomdp.toml")
+"""The built-in training mission of `ata train --plugins trp` (TR-POMDP; with ita, AtRL-TR)."""
+
 LOG_FIELDS = ["phase", "step", "episodes", "samples_per_s", "loss", "mean_score", "R_ITA",
-              "R_C", "R_TR", "eval_score", "aux_fatigue_mse", "aux_latency_mse", "wall_s"]
+              "R_C", "R_TR", "eval_score", "aux_fatigue_mse", "aux_latency_mse", "epsilon",
+              "wall_s"]
 
 
 def net_config(mission) -> NetConfig:
@@ -70,12 +74,19 @@ class Method:
     ctr_condition: bool
     ctr_realloc: bool
     aux: bool
+    dqn: bool = False
 
     @classmethod
     def of(cls, mission) -> "Method":
         s = mission.slots
         return cls(ita=s.initial == "attention", ctr_condition=s.condition == "ctr",
-                   ctr_realloc=s.reallocation == "ctr", aux="aux" in s.reconstructors)
+                   ctr_realloc=s.reallocation == "ctr", aux="aux" in s.reconstructors,
+                   dqn=s.reallocation == "tr_pomdp")
+
+    @property
+    def policy_gradient(self) -> bool:
+        """Whether there is an attention/GRU policy to train (imitation, then REINFORCE)."""
+        return self.ita or self.ctr_condition or self.ctr_realloc
 
 
 # -- the greedy teacher, recording what the students learn from ----------------------------------
@@ -173,15 +184,15 @@ class Trainer:
         self.mission = session.mission
         self.run_dir = Path(run_dir)
         self.method = Method.of(self.mission)
-        if not (self.method.ita or self.method.ctr_realloc or self.method.ctr_condition):
+        if not (self.method.policy_gradient or self.method.dqn):
             raise MissionError("[components]", "initial", "nothing to train: use initial = "
-                               "'attention' and/or condition/reallocation = 'ctr'",
-                               file=self.mission.source)
+                               "'attention', condition/reallocation = 'ctr', or reallocation "
+                               "= 'tr_pomdp'", file=self.mission.source)
         self.t = self.mission.train
         torch.set_num_threads(self.t.threads)
         self.cfg = net_config(self.mission)
         self.on_row = on_row
-        self.counters = {"aux": 0, "imitation": 0, "rl": 0, "episodes": 0}
+        self.counters = {"aux": 0, "imitation": 0, "rl": 0, "dqn": 0, "episodes": 0}
         self.best_eval = -math.inf
         self.wall = 0.0
         torch.manual_seed(self.t.seed)
@@ -190,6 +201,10 @@ class Trainer:
         self.aux_opt = torch.optim.Adam(list(self.net.fatigue.parameters())
                                         + list(self.net.latency.parameters()), lr=self.t.aux_lr)
         self.gen = torch.Generator().manual_seed(self.t.seed + 1)
+        self.agents = None
+        if self.method.dqn:
+            from ata.learn.dqn_train import AgentLearner
+            self.agents = AgentLearner(self.t)
         self.run_dir.mkdir(parents=True, exist_ok=True)
         if resume:
             self._load(self.run_dir / "checkpoint.pt")
@@ -199,19 +214,23 @@ class Trainer:
                 csv.DictWriter(f, fieldnames=LOG_FIELDS).writeheader()
 
     # -- checkpoints ---------------------------------------------------------------------------
-    def checkpoint(self) -> dict[str, Any]:
-        return {"model": self.net.state_dict(), "optimizer": self.opt.state_dict(),
+    def checkpoint(self, replay: bool = True) -> dict[str, Any]:
+        data = {"model": self.net.state_dict(), "optimizer": self.opt.state_dict(),
                 "aux_optimizer": self.aux_opt.state_dict(),
                 "rng": {"torch": torch.get_rng_state(), "sampler": self.gen.get_state()},
                 "counters": dict(self.counters), "best_eval": float(self.best_eval),
                 "wall_s": float(self.wall), "config": self.cfg.as_dict(),
                 "mission": self.mission.to_toml(), "format": 1}
+        if self.agents is not None:
+            data.update(self.agents.state(replay=replay))
+        return data
 
     def save(self, name: str = "checkpoint.pt") -> Path:
-        """Write atomically: a temporary file in the same folder, then a rename."""
+        """Write atomically: a temporary file in the same folder, then a rename. ``best.pt``
+        leaves out the replay buffer (it is for evaluation; resume from checkpoint.pt)."""
         path = self.run_dir / name
         tmp = path.with_suffix(".tmp")
-        torch.save(self.checkpoint(), tmp)
+        torch.save(self.checkpoint(replay=name == "checkpoint.pt"), tmp)
         os.replace(tmp, path)
         return path
 
@@ -224,7 +243,9 @@ class Trainer:
             self.aux_opt.load_state_dict(data["aux_optimizer"])
             torch.set_rng_state(data["rng"]["torch"])
             self.gen.set_state(data["rng"]["sampler"])
-            self.counters = {k: int(v) for k, v in data["counters"].items()}
+            self.counters.update({k: int(v) for k, v in data["counters"].items()})
+            if self.agents is not None:
+                self.agents.load(data)
         except (KeyError, ValueError, RuntimeError, TypeError) as exc:
             from ata.learn.runtime import CheckpointError
             raise CheckpointError(path, f"cannot resume from it ({exc})") from None
@@ -241,7 +262,7 @@ class Trainer:
     # -- rollouts ------------------------------------------------------------------------------
     def _ids(self, phase: str, step: int) -> np.ndarray:
         """Training scenarios: a disjoint index range per phase and step of root seed t.seed."""
-        base = {"aux": 0, "imitation": 10_000_000, "rl": 20_000_000}[phase]
+        base = {"aux": 0, "imitation": 10_000_000, "rl": 20_000_000, "dqn": 30_000_000}[phase]
         return base + step * self.t.batch_size + np.arange(self.t.batch_size)
 
     def _training_mission(self):
@@ -278,6 +299,10 @@ class Trainer:
                 overrides["reallocation"] = ctr
         if self.method.aux:
             overrides["reconstructors"] = AuxReconstructor(None, mission, net=self.net)
+        if self.method.dqn and self.method.ita:      # AtRL-TR: the ITA is trained alone, with no reallocation
+            from ata.plugins.conditions import Never
+            overrides["condition"] = Never(None, mission)
+            overrides["reallocation"] = overrides["initial"]
         sim = Simulation(mission, self.session.registry, ids, overrides=overrides)
         record = sim.run()
         return record, recorder
@@ -482,6 +507,18 @@ class Trainer:
     def run(self) -> dict[str, Any]:
         """All phases, resuming wherever the counters stand."""
         report = self.train_aux()
+        if self.method.policy_gradient:
+            self.train_policy()
+        if self.method.dqn:
+            from ata.learn.dqn_train import train_agents
+            train_agents(self)
+        if not (self.run_dir / "best.pt").exists():
+            self.save("best.pt")
+        return {"aux": report, "best_eval": self.best_eval, "wall_s": self.wall,
+                "counters": dict(self.counters)}
+
+    def train_policy(self) -> None:
+        """Imitation warm start, then REINFORCE; best.pt follows the held-out evaluation."""
         if self.t.imitation_steps:
             self.train_imitation()
         if self.counters["rl"] == 0 and self.t.rl_steps and not (self.run_dir / "best.pt").exists():
@@ -492,10 +529,6 @@ class Trainer:
             self.best_eval = score
             self.save("best.pt")
         self.train_rl()
-        if not (self.run_dir / "best.pt").exists():
-            self.save("best.pt")
-        return {"aux": report, "best_eval": self.best_eval, "wall_s": self.wall,
-                "counters": dict(self.counters)}
 
 
 def nets_masks(robot_ok: np.ndarray, skill_high: torch.Tensor):
@@ -506,9 +539,18 @@ def nets_masks(robot_ok: np.ndarray, skill_high: torch.Tensor):
 
 def method_overrides(plugins: list[str]) -> list[str]:
     """`--set` lines that make the slots follow the learned parts named: without ``ctr`` the
-    ITA policy never reallocates; without ``aux`` the identity reconstructor feeds the raw S."""
+    ITA policy never reallocates; without ``aux`` the identity reconstructor feeds the raw S;
+    ``trp`` reallocates with the TR-POMDP agents every epoch, after a random initial
+    allocation, or after the attention ITA when ``ita`` is named too (AtRL-TR)."""
     out = []
-    if "ctr" not in plugins:
+    if "trp" in plugins:
+        if "ctr" in plugins:
+            raise MissionError("--plugins", "trp", "trp and ctr are two reallocation methods; "
+                               "name one")
+        out += ["components.condition='always'", "components.reallocation='tr_pomdp'",
+                "components.initial='attention'" if "ita" in plugins
+                else "components.initial='random'"]
+    elif "ctr" not in plugins:
         out += ["components.condition='never'", "components.reallocation='attention'"]
     if "aux" not in plugins:
         out += ["components.reconstructors=['identity']"]
@@ -517,4 +559,6 @@ def method_overrides(plugins: list[str]) -> list[str]:
 
 def total_steps(mission) -> int:
     t, m = mission.train, Method.of(mission)
-    return (t.aux_steps if m.aux else 0) + t.imitation_steps + t.rl_steps
+    return ((t.aux_steps if m.aux else 0)
+            + (t.imitation_steps + t.rl_steps if m.policy_gradient else 0)
+            + (t.dqn_steps if m.dqn else 0))

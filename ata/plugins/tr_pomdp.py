@@ -1,0 +1,93 @@
+"""TR-POMDP reallocation (optional plugin ``trp``): decentralised DQN agents, one per member.
+
+The baseline of Wu et al. (ICRA 2022) as the paper uses it: every epoch, each human and each
+robot acts on its own partial observation (``ata.learn.dqn``) with a Q-network shared by its
+kind, and the joint action edits the allocation in force. Uncertainty is handled only by the
+POMDP formulation: the agents read the raw observation, never a reconstruction. Pair it with
+``condition = "always"``; the initial allocation is ``random`` (TR-POMDP) or the attention ITA
+trained alone (AtRL-TR).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ata import hookimpl
+from ata.core.settings import param
+from ata.core.state import Allocation, DecisionContext
+from ata.learn import dqn
+from ata.learn.runtime import CheckpointError, read_checkpoint, resolve
+
+_CACHE: dict[str, dqn.AgentNets] = {}
+
+
+def agents_from_checkpoint(data: dict[str, Any], path: str | Path) -> dqn.AgentNets:
+    """The agents' Q-networks stored in a checkpoint (its ``agents`` entry)."""
+    if "agents" not in data or "agents_config" not in data:
+        raise CheckpointError(path, "holds no TR-POMDP agents (train them with "
+                                    "`ata train --plugins trp`)")
+    try:
+        nets = dqn.AgentNets(dqn.AgentConfig(**data["agents_config"]))
+        nets.load_state_dict(data["agents"])
+    except (TypeError, RuntimeError) as exc:
+        raise CheckpointError(path, f"agents do not fit their architecture: "
+                                    f"{str(exc).splitlines()[0][:200]}") from None
+    return nets
+
+
+def load_agents(spec: str) -> dqn.AgentNets:
+    path = resolve(spec)
+    key = str(path.resolve()) if path.exists() else str(path)
+    if key not in _CACHE:
+        nets = agents_from_checkpoint(read_checkpoint(path), path)
+        nets.eval()
+        _CACHE[key] = nets
+    return _CACHE[key]
+
+
+@dataclass
+class Transition:
+    """One epoch of the agents, as a trainer records it."""
+
+    inputs: dqn.AgentInputs
+    robot_a: np.ndarray
+    human_a: np.ndarray
+
+
+class TRPOMDPPolicy:
+    """Every epoch, the joint epsilon-greedy action of the decentralised agents."""
+
+    component_name = "tr_pomdp"
+
+    @dataclass
+    class Settings:
+        checkpoint: str = param("builtin:tr_pomdp_a", help="trained agents: a path or "
+                                "builtin:NAME")
+        epsilon: float = param(0.0, min=0.0, max=1.0, help="exploration rate at evaluation "
+                               "(random legal action, per agent, from the scenario's stream)")
+
+    def __init__(self, settings: "TRPOMDPPolicy.Settings", mission: Any,
+                 nets: dqn.AgentNets | None = None, log: list[Transition] | None = None,
+                 epsilon: float | None = None):
+        self.settings = settings
+        self.nets = nets if nets is not None else load_agents(settings.checkpoint)
+        self.log = log
+        self.epsilon = settings.epsilon if epsilon is None else epsilon
+
+    @hookimpl
+    def ata_reallocate(self, ctx: DecisionContext, active: np.ndarray) -> Allocation:
+        cfg = self.nets.cfg
+        inputs = dqn.observe(ctx, cfg)
+        ra, rq, ha, hq = dqn.act(self.nets, inputs, self.epsilon, ctx)
+        if self.log is not None:
+            self.log.append(Transition(inputs, ra, ha))
+        return dqn.apply_actions(ctx.previous, inputs, ra, rq, ha, hq, cfg.k)
+
+
+@hookimpl
+def ata_register_components(register) -> None:
+    register("policy", "tr_pomdp", TRPOMDPPolicy)

@@ -1,0 +1,210 @@
+"""TR-POMDP and AtRL-TR: partial observations, joint actions, DQN training, checkpoints."""
+
+import numpy as np
+import pytest
+import torch
+from typer.testing import CliRunner
+
+from ata.cli import app
+from ata.core.kernel import Simulation
+from ata.core.runner import load_session, run_mission
+from ata.core.state import Allocation
+from ata.learn import dqn
+from ata.learn import train as T
+from ata.learn.dqn_train import Replay
+from ata.learn.runtime import CheckpointError, read_checkpoint
+from ata.plugins.conditions import Always
+from ata.plugins.tr_pomdp import TRPOMDPPolicy
+
+TINY = ["train.batch_size=4", "train.eval_scenarios=4", "train.dqn_steps=3",
+        "train.dqn_updates=2", "train.dqn_minibatch=32", "train.eval_every=1",
+        "train.checkpoint_every=1", "train.dqn_buffer=2000", "train.dqn_target_sync=2",
+        "train.eps_decay_steps=2", "train.dqn_hidden=16", "train.threads=1",
+        "train.imitation_steps=2", "train.rl_steps=1", "train.d_model=16"]
+
+
+def session(*extra, plugins=("trp",)):
+    names = list(plugins)
+    return load_session(str(T.TRP_MISSION), [*T.method_overrides(names), *TINY, *extra], names)
+
+
+def context(setting="a", epochs=3, ids=(0, 1, 2)):
+    """A decision context a few epochs into an episode (random ITA, random agents)."""
+    s = session(f"mission.setting='{setting}'")
+    nets = dqn.AgentNets(dqn.AgentConfig(k=4, hidden=16))
+    agents = TRPOMDPPolicy(TRPOMDPPolicy.Settings(), s.mission, nets=nets, epsilon=1.0)
+    sim = Simulation(s.mission, s.registry, list(ids),
+                     overrides={"reallocation": agents, "condition": Always(None, s.mission)})
+    sim.reset()
+    for _ in range(epochs):
+        sim.step_epoch()
+    return sim.last_context
+
+
+def _set(table, row_of_entity, column, value):
+    table.features[:, row_of_entity, table.index(column)] = value
+
+
+@pytest.mark.parametrize("setting", ["a", "b"])
+def test_an_agent_sees_only_its_own_private_state(setting):
+    ctx = context(setting)
+    cfg = dqn.AgentConfig(k=4)
+    base = dqn.observe(ctx, cfg)
+    H, R = ctx.sizes.humans, ctx.sizes.robots
+    assert base.robot_obs.shape == (3, R, cfg.robot_dim)
+    assert base.human_obs.shape == (3, H, cfg.human_dim)
+    # change human 0's and robot 0's private state: their observed rows, human 0's abilities
+    hs, rs = ctx.observed["humans"], ctx.observed["robots"]
+    for col, val in (("fatigue", 0.123), ("working_time", 2.5), ("idleness", 0.01), ("sa", 0.3)):
+        _set(hs, 0, col, val)
+    for col, val in (("cognitive", 0.9), ("expertise", 0.1), ("skill", 2.0)):
+        _set(ctx.inherent["humans"], 0, col, val)
+    for col, val in (("x", 0.97), ("y", 0.03), ("working", 0.0), ("idleness", 0.5),
+                     ("target", 7)):
+        _set(rs, 0, col, val)
+    # (the roster, which kind of robot each one is, is public: every member knows it)
+    after = dqn.observe(ctx, cfg)
+    # every other agent's input is unchanged, bit for bit...
+    assert np.array_equal(after.human_obs[:, 1:], base.human_obs[:, 1:])
+    assert np.array_equal(after.human_legal[:, 1:], base.human_legal[:, 1:])
+    assert np.array_equal(after.robot_obs[:, 1:], base.robot_obs[:, 1:])
+    assert np.array_equal(after.robot_legal[:, 1:], base.robot_legal[:, 1:])
+    # ...while the changed agents' own inputs did change (the test can fail)
+    assert not np.array_equal(after.human_obs[:, 0], base.human_obs[:, 0])
+    assert not np.array_equal(after.robot_obs[:, 0], base.robot_obs[:, 0])
+    # a robot observed down may only keep
+    assert not after.robot_legal[:, 0, 1:].any()
+
+
+def test_observation_layout_and_legal_actions():
+    ctx = context()
+    cfg = dqn.AgentConfig(k=4)
+    inp = dqn.observe(ctx, cfg)
+    prev, movable = ctx.previous, ctx.reallocatable
+    B, R, K = inp.robot_cand.shape
+    rx, ry = ctx.observed["robots"].col("x"), ctx.observed["robots"].col("y")
+    tx, ty = ctx.inherent["tasks"].col("x"), ctx.inherent["tasks"].col("y")
+    for b in range(B):
+        for r in range(R):
+            ok = movable[b] & (prev.robot[b] != r)
+            d = np.where(ok, np.hypot(tx[b] - rx[b, r], ty[b] - ry[b, r]), np.inf)
+            n = min(K, int(ok.sum()))
+            assert sorted(inp.robot_cand[b, r, :n]) == sorted(np.argsort(d, kind="stable")[:n])
+    # held roles are roles the human really holds on movable POIs
+    H = ctx.sizes.humans
+    valid = inp.human_legal[..., 1 + 2 * K:]
+    b, h, k = np.nonzero(valid)
+    p = inp.human_held[b, h, k]
+    assert ((prev.classifier[b, p] == h) | (prev.navigator[b, p] == h)).all()
+    assert movable[b, p].all()
+    # navigation actions only for highly skilled humans
+    high = ctx.inherent["humans"].col("skill") > 1.5
+    assert not inp.human_legal[..., 1 + K:1 + 2 * K][~high].any()
+    assert inp.human_obs.shape[1] == H
+
+
+def test_joint_action_resolves_conflicts_by_q():
+    P, K = 5, 2
+    prev = Allocation(np.zeros((1, P), np.int64), np.full((1, P), -1), np.full((1, P), -1))
+    prev.classifier[0, 3] = 1
+    inp = dqn.AgentInputs(
+        robot_obs=None, robot_legal=None, human_obs=None, human_legal=None,
+        robot_cand=np.array([[[2, 4], [2, 1]]]),                # robots 0, 1 both eye POI 2
+        human_new=np.array([[[0, 1], [0, 4]]]), human_held=np.array([[[0, 0], [3, 0]]]),
+        human_load=None, robot_load=None)
+    alloc = dqn.apply_actions(
+        prev, inp, robot_a=np.array([[1, 1]]), robot_q=np.array([[0.5, 0.9]]),
+        human_a=np.array([[1, 2 * K + 1]]), human_q=np.array([[0.1, 0.2]]), k=K)
+    assert alloc.robot[0, 2] == 1                  # the higher Q wins
+    assert alloc.classifier[0, 3] == -1            # human 1 released its classification
+    assert alloc.classifier[0, 0] == 0             # human 0 took POI 0
+    # both humans claim POI 0's classification: the higher Q wins
+    alloc = dqn.apply_actions(prev, inp, np.zeros((1, 2), int), np.zeros((1, 2)),
+                              np.array([[1, 1]]), np.array([[0.3, 0.7]]), K)
+    assert alloc.classifier[0, 0] == 1 and (alloc.robot == prev.robot).all()
+
+
+def test_replay_buffer_is_a_ring():
+    buf = Replay(5, 2, 3)
+    for i in range(3):
+        buf.add(obs=np.full((2, 2), i), action=np.array([i, i]), reward=np.array([i, i]),
+                next_obs=np.zeros((2, 2)), next_legal=np.ones((2, 3), bool),
+                done=np.zeros(2))
+    assert buf.size == 5 and buf.pos == 1
+    assert buf.data["action"].tolist() == [2, 0, 1, 1, 2]
+    state = buf.state()
+    other = Replay(5, 2, 3)
+    other.load(state)
+    assert torch.equal(other.data["obs"], buf.data["obs"]) and other.pos == 1
+
+
+@pytest.mark.parametrize("plugins", [("trp",), ("ita", "trp")])
+def test_training_smoke_and_checkpoint_round_trip(tmp_path, plugins):
+    s = session(plugins=plugins)
+    assert s.mission.slots.reallocation == "tr_pomdp"
+    assert s.mission.slots.initial == ("attention" if "ita" in plugins else "random")
+    trainer = T.Trainer(s, tmp_path)
+    before = [p.detach().clone() for p in trainer.agents.nets.parameters()]
+    report = trainer.run()
+    assert report["counters"]["dqn"] == 3
+    assert any(not torch.equal(a, b) for a, b in zip(before, trainer.agents.nets.parameters()))
+    rows = [r.split(",") for r in (tmp_path / "log.csv").read_text().splitlines()]
+    dqn_rows = [r for r in rows if r[0] == "dqn"]
+    assert len(dqn_rows) == 3 and all(np.isfinite(float(r[4])) for r in dqn_rows)
+    if "ita" in plugins:
+        assert [r[0] for r in rows[1:]].count("imitation") == 2
+    data = torch.load(tmp_path / "checkpoint.pt", weights_only=True)
+    assert set(data) >= {"agents", "agents_target", "agents_optimizer", "agents_config",
+                         "replay", "rng", "counters", "mission"}
+    assert data["replay"]["robot"]["size"] > 0
+    best = read_checkpoint(tmp_path / "best.pt")
+    assert "replay" not in best and "agents" in best
+    # the trained agents run as a mission component from their checkpoint file
+    run = load_session(str(T.TRP_MISSION),
+                       [*T.method_overrides(list(plugins)), "mission.scenarios=3",
+                        f"tr_pomdp.checkpoint='{tmp_path / 'best.pt'}'"]
+                       + ([f"attention.checkpoint='{tmp_path / 'best.pt'}'"]
+                          if "ita" in plugins else []), list(plugins))
+    result = run_mission(run)
+    assert result.reallocations.tolist() == [29, 29, 29]
+
+
+class Killed(Exception):
+    pass
+
+
+def test_resume_after_kill_matches_an_uninterrupted_run(tmp_path):
+    s = session()
+    whole = T.Trainer(s, tmp_path / "whole")
+    whole.run()
+
+    def kill(row):
+        if row["phase"] == "dqn" and str(row["step"]) == "2":
+            raise Killed
+
+    broken = T.Trainer(s, tmp_path / "broken", on_row=kill)
+    with pytest.raises(Killed):
+        broken.run()
+    resumed = T.Trainer(load_session(str(tmp_path / "broken" / "mission.resolved.toml")),
+                        tmp_path / "broken", resume=True)
+    assert resumed.counters["dqn"] == 1
+    resumed.run()
+    assert resumed.counters == whole.counters
+    for (k, a), (_, b) in zip(whole.agents.nets.state_dict().items(),
+                              resumed.agents.nets.state_dict().items()):
+        assert torch.allclose(a, b, atol=1e-6), k
+
+
+def test_cli_train_trp_and_bad_checkpoint(tmp_path):
+    runner = CliRunner()
+    out = tmp_path / "run"
+    res = runner.invoke(app, ["train", "--plugins", "trp", "--out", str(out),
+                              *[x for kv in TINY for x in ("--set", kv)]])
+    assert res.exit_code == 0, res.output
+    assert (out / "best.pt").exists() and "dqn" in (out / "log.csv").read_text()
+    res = runner.invoke(app, ["train", "--plugins", "trp,ctr"])
+    assert res.exit_code == 2 and "name one" in res.output
+    # a checkpoint without agents is refused with a clear message
+    (tmp_path / "bad.pt").write_bytes(b"not a checkpoint")
+    with pytest.raises(CheckpointError):
+        TRPOMDPPolicy(TRPOMDPPolicy.Settings(checkpoint=str(tmp_path / "bad.pt")), None)
