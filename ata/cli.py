@@ -154,11 +154,13 @@ def train(mission: Optional[str] = typer.Argument(
           plugins: Optional[str] = typer.Option(
               None, "--plugins", metavar="NAME[,NAME]",
               help="Learned parts to train: ctr (pi_C and pi_TR), aux (state reconstruction). "
-                   "Default: ctr,aux. Leaving one out trains the ablation."),
+                   "Default: ctr,aux. Leaving one out trains the ablation. trp: the TR-POMDP "
+                   "agents (with ita: AtRL-TR); ita alone: the attention ITA alone."),
           out: Optional[Path] = typer.Option(None, "--out", "-o", help="Run folder."),
           resume: Optional[Path] = typer.Option(None, "--resume",
                                                 help="Resume the run in this folder.")) -> None:
-    """Train ATA-HRL (or an ablation): reconstruction, imitation warm start, REINFORCE."""
+    """Train ATA-HRL (or an ablation): reconstruction, imitation warm start, REINFORCE; or the
+    TR-POMDP agents (double DQN), after the attention ITA for AtRL-TR."""
     from ata.core import runner
     from ata.learn import train as training
 
@@ -172,8 +174,8 @@ def train(mission: Optional[str] = typer.Argument(
     else:
         names = _split(plugins) if plugins is not None else ["ctr", "aux"]
         overrides = training.method_overrides(names) + list(set_ or [])
-        session = runner.load_session(mission or str(training.TRAIN_MISSION), overrides,
-                                      names)
+        default = training.TRP_MISSION if "trp" in names else training.TRAIN_MISSION
+        session = runner.load_session(mission or str(default), overrides, names)
         run_dir = out or runner.default_out_dir(session.mission).with_name(
             "train-" + runner.default_out_dir(session.mission).name)
     m = session.mission
@@ -189,6 +191,8 @@ def train(mission: Optional[str] = typer.Argument(
                 parts.append(f"{row['samples_per_s']} samples/s")
             if row.get("mean_score"):
                 parts.append(f"reward {row['mean_score']}")
+            if row.get("epsilon"):
+                parts.append(f"eps {row['epsilon']}")
             if row.get("eval_score"):
                 parts.append(f"eval {row['eval_score']}")
             if row.get("aux_fatigue_mse"):
@@ -198,7 +202,7 @@ def train(mission: Optional[str] = typer.Argument(
 
         trainer = training.Trainer(session, run_dir, resume=resume is not None, on_row=on_row)
         progress.update(task, completed=sum(trainer.counters[k] for k in ("aux", "imitation",
-                                                                          "rl")))
+                                                                          "rl", "dqn")))
         report = trainer.run()
     console.print(f"trained in {report['wall_s']:.0f} s of training time; best held-out "
                   f"score {report['best_eval']:.1f}")
@@ -268,6 +272,117 @@ def plugins(verbose: bool = typer.Option(False, "--verbose", "-v",
             for key, tp, default, text in (describe(cls) if cls else []):
                 sub.add_row(key, tp, escape(repr(default)), escape(text))
             console.print(sub)
+
+
+def _split_or_none(text: Optional[str]) -> Optional[list[str]]:
+    return _split(text) or None
+
+
+@app.command("eval")
+@user_errors
+def eval_(paths: List[str] = typer.Argument(
+              ..., metavar="FILE",
+              help="Suite files (a suite table and method tables) or mission files; see "
+                   "docs/evaluation.md."),
+          out: Optional[Path] = typer.Option(None, "--out", "-o",
+                                             help="Output folder (default: runs/eval-NAME-TIME)."),
+          executor: str = typer.Option("process", "--executor", "-e",
+                                       help="serial, process (local worker processes) or ray."),
+          workers: Optional[int] = typer.Option(None, "--workers", "-w", min=1,
+                                                help="Worker processes (process: default one "
+                                                     "per core) or local Ray CPUs."),
+          address: Optional[str] = typer.Option(None, "--address",
+                                                help="Ray cluster address (default: "
+                                                     "$RAY_ADDRESS, else a local Ray)."),
+          chunk_size: int = typer.Option(50, "--chunk-size", min=1,
+                                         help="Scenarios per work unit."),
+          scenarios: Optional[int] = typer.Option(None, "--scenarios", "-n", min=1,
+                                                  help="Scenarios per (method, setting, level) "
+                                                       "(default: the suite's, else 500)."),
+          seed: Optional[int] = typer.Option(None, "--seed", min=0,
+                                             help="Root seed (default: the suite's, else 0)."),
+          methods: Optional[str] = typer.Option(None, "--methods", metavar="NAME[,NAME]",
+                                                help="Run only these methods."),
+          settings: Optional[str] = typer.Option(None, "--settings", metavar="S[,S]",
+                                                 help="Run only these team settings."),
+          levels: Optional[str] = typer.Option(None, "--levels", metavar="LEVEL[,LEVEL]",
+                                               help="Run only these uncertainty levels."),
+          cache: Optional[Path] = typer.Option(None, "--cache",
+                                               help="Cache folder for results that depend on "
+                                                    "the scenario alone (MILP initial "
+                                                    "allocations); default $ATA_CACHE, else "
+                                                    "~/.cache/ata."),
+          no_cache: bool = typer.Option(False, "--no-cache", help="Use no cache."),
+          quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar.")) -> None:
+    """Evaluate methods on held-out scenarios across team settings and uncertainty levels."""
+    from ata.core import evaluate as ev
+    from ata.core import report as rep
+    from ata.core.errors import MissionError
+    from ata.core.executors import EXECUTORS, make_executor
+
+    if executor not in EXECUTORS:
+        raise MissionError("--executor", None, f"unknown executor {executor!r}; choose one of "
+                           + ", ".join(EXECUTORS))
+    # every job is built and validated before any scenario runs or anything is written
+    suites, jobs = ev.plan(list(paths), scenarios=scenarios, seed=seed,
+                           methods=_split_or_none(methods), settings=_split_or_none(settings),
+                           levels=_split_or_none(levels))
+    cache_dir = None if no_cache else (cache or ev.default_cache_dir())
+    total = ev.total_scenarios(jobs)
+    columns = [TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
+               TextColumn("{task.completed:,.0f}/{task.total:,.0f} scenarios"),
+               TimeElapsedColumn(), TimeRemainingColumn()]
+    with make_executor(executor, workers, address) as pool:
+        with Progress(*columns, console=Console(stderr=True), disable=quiet) as progress:
+            task = progress.add_task(f"eval: {len(jobs)} (method, setting, level)", total=total)
+            result = ev.evaluate(jobs, pool, chunk_size=chunk_size, cache=cache_dir,
+                                 progress=lambda n: progress.advance(task, n))
+        described = pool.describe()
+    arguments = {"paths": list(paths), "executor": described, "chunk_size": chunk_size,
+                 "scenarios": scenarios, "seed": seed, "methods": methods,
+                 "settings": settings, "levels": levels,
+                 "cache": str(cache_dir) if cache_dir else None,
+                 "first_scenario": ev.EVAL_FIRST_SCENARIO}
+    out_dir = ev.write_eval(out or ev.default_out_dir(suites), suites, jobs, result, arguments)
+    report = rep.summarize(rep.read_results(out_dir))
+    _render_report(report)
+    for warning in result.warnings:
+        err_console.print(f"[yellow]warning:[/] {escape(warning)}", highlight=False)
+    console.print(f"{len(result.rows)} rows in {result.wall_s:.1f} s; results: {out_dir} "
+                  f"(ata report {out_dir} for report.md and figures)", highlight=False)
+
+
+def _render_report(report) -> None:
+    from ata.core.report import table_rows, title
+
+    for setting, level in report.groups():
+        header, rows = table_rows(report, setting, level, short=True)
+        table = Table(title=escape(title(setting, level)))
+        for i, name in enumerate(header):
+            table.add_column(escape(name), justify="left" if i == 0 else "right",
+                             no_wrap=i == 2)
+        for row in rows:
+            table.add_row(*[escape(x) for x in row])
+        console.print(table)
+
+
+@app.command()
+@user_errors
+def report(run_dir: Path = typer.Argument(..., metavar="DIR",
+                                          help="An `ata eval` output folder."),
+           reference: Optional[str] = typer.Option(
+               None, "--reference", "-r",
+               help="The method the others are compared with (default: ATA-HRL if present, "
+                    "else the first method)."),
+           no_figures: bool = typer.Option(False, "--no-figures", help="Write no figures."),
+           resamples: int = typer.Option(2000, "--resamples", min=10,
+                                         help="Bootstrap resamples.")) -> None:
+    """Tables (with bootstrap confidence intervals) and figures of an evaluation."""
+    from ata.core import report as rep
+
+    result, written = rep.write_report(run_dir, reference, not no_figures, resamples)
+    _render_report(result)
+    console.print("wrote " + ", ".join(str(p) for p in written), highlight=False)
 
 
 if __name__ == "__main__":  # pragma: no cover

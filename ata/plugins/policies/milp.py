@@ -13,10 +13,17 @@ navigates no faster and images no better than the robot alone).
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
+import hashlib
+import json
+import os
 import time
 import warnings
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 from scipy import sparse
@@ -285,6 +292,108 @@ def _solve_chunk(args: tuple) -> list[Solution]:
     return [solve_scenario(d, settings) for d in data]
 
 
+# -- the solution cache ----------------------------------------------------------------------
+# A scenario's MILP depends on its ScenarioData (I, the working hours at t = 0, the horizon and
+# the uncertainty level) and the [milp] settings alone, so its solution can be kept on disk and
+# reused by the next evaluation. Off unless a cache folder is set (`ata eval` sets one).
+
+_CACHE_DIR: Path | None = None
+CACHE_FORMAT = 1
+"""Bumped when the cached record changes shape."""
+_NOT_IN_KEY = ("workers", "chunk_size")
+"""[milp] settings that do not change a scenario's solution."""
+_code_hash: str | None = None
+
+
+def cache_dir() -> Path | None:
+    """The folder solutions are cached in, or None when caching is off."""
+    return _CACHE_DIR
+
+
+@contextlib.contextmanager
+def solution_cache(path: str | Path | None) -> Iterator[Path | None]:
+    """Cache MILP solutions under `path`/milp/ inside the block (None: no cache)."""
+    global _CACHE_DIR
+    previous = _CACHE_DIR
+    _CACHE_DIR = Path(path).expanduser() if path is not None else None
+    try:
+        yield _CACHE_DIR
+    finally:
+        _CACHE_DIR = previous
+
+
+def _code_version() -> str:
+    """A hash of the code a solution depends on (this module, the model tables, scipy)."""
+    global _code_hash
+    if _code_hash is None:
+        import scipy
+
+        h = hashlib.sha256(f"{CACHE_FORMAT} scipy {scipy.__version__}".encode())
+        for module_file in (__file__, tables.__file__):
+            h.update(Path(module_file).read_bytes())
+        _code_hash = h.hexdigest()
+    return _code_hash
+
+
+def cache_key(d: ScenarioData, s: MilpSettings) -> str:
+    """sha256 of everything a scenario's solution depends on: its data, the settings, the code."""
+    h = hashlib.sha256(_code_version().encode())
+    for f in dataclasses.fields(d):
+        value = getattr(d, f.name)
+        a = np.ascontiguousarray(value)
+        h.update(f"{f.name}:{a.dtype.str}:{a.shape};".encode())
+        h.update(a.tobytes())
+    settings = {k: v for k, v in dataclasses.asdict(s).items() if k not in _NOT_IN_KEY}
+    h.update(json.dumps(settings, sort_keys=True).encode())
+    h.update(repr(RELAX_STEPS).encode())
+    return h.hexdigest()
+
+
+def _cache_path(root: Path, key: str) -> Path:
+    return root / "milp" / key[:2] / f"{key}.json"
+
+
+def load_cached(root: Path, key: str) -> Solution | None:
+    """The cached solution under `key`, or None (absent or unreadable)."""
+    try:
+        rec = json.loads(_cache_path(root, key).read_text(encoding="utf-8"))
+        if rec.get("format") != CACHE_FORMAT:
+            return None
+        triples = None if rec["triples"] is None else np.asarray(rec["triples"], dtype=np.int64)
+        return Solution(triples=triples, status=int(rec["status"]),
+                        objective=float(rec["objective"]), bound=float(rec["bound"]),
+                        gap=float(rec["gap"]), seconds=float(rec["seconds"]),
+                        message=str(rec["message"]), problems=list(rec["problems"]),
+                        margin_scale=float(rec["margin_scale"]))
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def store_cached(root: Path, key: str, sol: Solution) -> None:
+    """Write a solution atomically (several processes may fill one cache at once)."""
+    path = _cache_path(root, key)
+    rec = {"format": CACHE_FORMAT,
+           "triples": None if sol.triples is None else sol.triples.tolist(),
+           "status": int(sol.status), "objective": float(sol.objective),
+           "bound": float(sol.bound), "gap": float(sol.gap), "seconds": float(sol.seconds),
+           "message": str(sol.message), "problems": list(sol.problems),
+           "margin_scale": float(sol.margin_scale)}
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+        tmp.write_text(json.dumps(rec), encoding="utf-8")
+        os.replace(tmp, path)
+    except OSError as exc:        # a read-only or full cache slows the run, nothing more
+        warnings.warn(f"milp: cannot write the solution cache ({exc})", RuntimeWarning,
+                      stacklevel=2)
+
+
+def cacheable(sol: Solution, s: MilpSettings) -> bool:
+    """Only reproducible outcomes are cached: not a crash, not a solve the clock cut short
+    (the time limit, unlike the node limit, depends on the machine)."""
+    return sol.status != 4 and sol.seconds < 0.95 * s.time_limit_s
+
+
 def scenario_data(ctx: DecisionContext, mission) -> list[ScenarioData]:
     """Split the batch's I (and the working hours of S at t = 0) into per-scenario inputs."""
     I, S = ctx.inherent, ctx.observed
@@ -320,7 +429,23 @@ class MilpPolicy:
         self.fallback: np.ndarray | None = None
 
     def solve_all(self, data: list[ScenarioData]) -> list[Solution]:
-        """Solve every scenario, in worker processes when asked; the order is the batch's."""
+        """Solve every scenario (taking cached solutions when a cache is set), in worker
+        processes when asked; the order is the batch's."""
+        root = cache_dir()
+        if root is None:
+            return self._solve(data)
+        keys = [cache_key(d, self.s) for d in data]
+        found = [load_cached(root, k) for k in keys]
+        todo = [i for i, sol in enumerate(found) if sol is None]
+        for i, sol in zip(todo, self._solve([data[i] for i in todo])):
+            found[i] = sol
+            if cacheable(sol, self.s):
+                store_cached(root, keys[i], sol)
+        return found
+
+    def _solve(self, data: list[ScenarioData]) -> list[Solution]:
+        if not data:
+            return []
         if self.s.workers <= 1 or len(data) <= self.s.chunk_size:
             return [solve_scenario(d, self.s) for d in data]
         chunks = [data[i:i + self.s.chunk_size] for i in range(0, len(data), self.s.chunk_size)]

@@ -1,0 +1,151 @@
+"""Where `ata eval` runs its work units: in this process, in local worker processes, or on a
+Ray cluster. One interface: `run(fn, units)` yields `(index, fn(units[index]))` as units finish,
+in any order; the caller puts results back in order, so no executor can change a number."""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from typing import Any, Callable, Iterator, Sequence
+
+from ata.core.errors import MissionError
+
+EXECUTORS = ("serial", "process", "ray")
+
+
+def cpu_count() -> int:
+    """The cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:       # not on Linux
+        return os.cpu_count() or 1
+
+
+class Executor:
+    """Runs `fn` on each unit; subclasses say where."""
+
+    name = "?"
+    parallel = False
+
+    def run(self, fn: Callable[[Any], Any], units: Sequence[Any]) -> Iterator[tuple[int, Any]]:
+        raise NotImplementedError
+
+    def describe(self) -> dict[str, Any]:
+        return {"executor": self.name}
+
+    def close(self) -> None:
+        pass
+
+    def __enter__(self) -> "Executor":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class SerialExecutor(Executor):
+    """Every unit in this process, in order."""
+
+    name = "serial"
+
+    def run(self, fn, units):
+        for i, unit in enumerate(units):
+            yield i, fn(unit)
+
+
+class ProcessExecutor(Executor):
+    """A local pool of worker processes (spawned, so that nothing the parent imported, such as
+    torch's thread pools, is inherited half-initialised)."""
+
+    name = "process"
+    parallel = True
+
+    def __init__(self, workers: int | None = None):
+        self.workers = workers or cpu_count()
+
+    def describe(self):
+        return {"executor": self.name, "workers": self.workers}
+
+    def run(self, fn, units):
+        if not units:
+            return
+        workers = min(self.workers, len(units))
+        context = multiprocessing.get_context("spawn")
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=context)
+        try:
+            pending = {pool.submit(fn, unit): i for i, unit in enumerate(units)}
+            while pending:
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for future in done:
+                    i = pending.pop(future)
+                    yield i, future.result()
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+class RayExecutor(Executor):
+    """Ray tasks, one CPU each: on the cluster at `address` (or $RAY_ADDRESS), else on a local
+    Ray instance started here (with `workers` CPUs when given). The `ata` package (and any
+    third-party plugin a mission names) must be importable on the cluster's nodes."""
+
+    name = "ray"
+    parallel = True
+
+    def __init__(self, address: str | None = None, workers: int | None = None):
+        try:
+            import ray
+        except ImportError:
+            raise MissionError("--executor", None, "ray is not installed; install it with: "
+                               "pip install 'ata[ray]'") from None
+        self.ray = ray
+        self.address = address or os.environ.get("RAY_ADDRESS") or None
+        self.workers = workers
+        self._started = False
+        if not ray.is_initialized():
+            kwargs: dict[str, Any] = {"address": self.address, "log_to_driver": False}
+            if self.address is None and workers:
+                kwargs["num_cpus"] = workers
+            try:
+                ray.init(**kwargs)
+            except ConnectionError as exc:
+                raise MissionError("--address", None, f"cannot connect to the Ray cluster at "
+                                   f"{self.address!r}: {exc}") from None
+            self._started = True
+
+    def describe(self):
+        return {"executor": self.name, "address": self.address or "local",
+                "cpus": self.ray.cluster_resources().get("CPU")}
+
+    def run(self, fn, units):
+        if not units:
+            return
+        remote = self.ray.remote(num_cpus=1, max_retries=0)(fn)
+        pending = {remote.remote(unit): i for i, unit in enumerate(units)}
+        try:
+            while pending:
+                done, _ = self.ray.wait(list(pending), num_returns=1)
+                for ref in done:
+                    i = pending.pop(ref)
+                    yield i, self.ray.get(ref)
+        finally:
+            for ref in pending:
+                self.ray.cancel(ref, force=True)
+
+    def close(self):
+        if self._started:
+            self.ray.shutdown()
+            self._started = False
+
+
+def make_executor(name: str, workers: int | None = None,
+                  address: str | None = None) -> Executor:
+    """The executor called `name`: serial, process or ray."""
+    if name == "serial":
+        return SerialExecutor()
+    if name == "process":
+        return ProcessExecutor(workers)
+    if name == "ray":
+        return RayExecutor(address, workers)
+    raise MissionError("--executor", None, f"unknown executor {name!r}; choose one of "
+                       + ", ".join(EXECUTORS))

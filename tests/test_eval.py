@@ -1,0 +1,436 @@
+"""`ata eval` and `ata report`: suites, validation before work, held-out seeds, executors that
+cannot change a number, the MILP solution cache, bootstrap intervals, tables and figures."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from ata.cli import app
+from ata.core import evaluate as ev
+from ata.core import report as rep
+from ata.core.errors import MissionError
+from ata.core.executors import ProcessExecutor, SerialExecutor
+from ata.core.mission import TrainSettings
+from ata.core.runner import BASELINE_MISSION, load_session, run_mission
+from ata.plugins import tables
+from ata.plugins.policies import milp as M
+
+ROOT = Path(__file__).resolve().parent.parent
+RANDOM_MISSION = ROOT / "examples" / "missions" / "random_baseline.toml"
+HRL_MISSION = ROOT / "examples" / "missions" / "ata_hrl_a.toml"
+
+SUITE = f"""\
+[suite]
+name = "tiny"
+settings = ["a"]
+uncertainty = ["low", "high"]
+scenarios = 4
+
+[[method]]
+name = "greedy"
+mission = "{BASELINE_MISSION}"
+
+[[method]]
+name = "random"
+mission = "{RANDOM_MISSION}"
+"""
+
+
+@pytest.fixture(autouse=True)
+def _isolated(tmp_path, monkeypatch):
+    monkeypatch.setenv("ATA_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("ATA_RUNS", str(tmp_path / "runs"))
+
+
+@pytest.fixture
+def cli():
+    runner = CliRunner(env={"COLUMNS": "200"})
+    return lambda *args: runner.invoke(app, [str(a) for a in args])
+
+
+@pytest.fixture
+def suite(tmp_path):
+    path = tmp_path / "suite.toml"
+    path.write_text(SUITE, encoding="utf-8")
+    return path
+
+
+def flat(text: str) -> str:
+    return " ".join(text.split())
+
+
+def read_csv(path):
+    with open(path, newline="", encoding="utf-8") as f:
+        reader = csv.DictReader(f)
+        return reader.fieldnames, list(reader)
+
+
+def without_wall(rows):
+    return [{k: v for k, v in r.items() if k != "wall_s"} for r in rows]
+
+
+# -- results.csv --------------------------------------------------------------------------------
+def test_results_schema_and_run_folder(cli, suite, tmp_path):
+    out = tmp_path / "out"
+    res = cli("eval", suite, "--executor", "serial", "--no-cache", "--out", out, "-q")
+    assert res.exit_code == 0, res.output
+    header, rows = read_csv(out / "results.csv")
+    assert header[:len(ev.CORE_COLUMNS)] == ev.CORE_COLUMNS
+    assert header == ev.CORE_COLUMNS + sorted(set(header) - set(ev.CORE_COLUMNS))
+    assert len(rows) == 2 * 1 * 2 * 4                    # methods x settings x levels x scenarios
+    keys = [(r["method"], r["setting"], r["uncertainty"], int(r["scenario"])) for r in rows]
+    order = {"greedy": 0, "random": 1, "low": 0, "high": 1}
+    assert keys == sorted(keys, key=lambda k: (order[k[0]], k[1], order[k[2]], k[3]))
+    for r in rows:
+        score, ub = float(r["score"]), float(r["upper_bound"])
+        assert ub > 0 and math.isclose(float(r["fraction_of_u"]), score / ub)
+        assert 0.0 <= float(r["classified_share"]) <= 1.0
+        assert int(r["reallocations"]) >= 0 and float(r["wall_s"]) > 0
+        assert int(r["seed"]) == 0 and int(r["scenario"]) >= ev.EVAL_FIRST_SCENARIO
+    assert {r["method"] for r in rows if int(r["reallocations"]) > 0} <= {"greedy"}
+    missions = sorted(p.name for p in (out / "missions").iterdir())
+    assert missions == [f"{m}__a__{lv}.resolved.toml" for m in ("greedy", "random")
+                        for lv in ("high", "low")]
+    plugins = tomllib.loads((out / "plugins.toml").read_text())
+    assert "ata" in plugins and "policy random" in plugins["components"]
+    meta = json.loads((out / "eval.json").read_text())
+    assert meta["rows"] == 16 and meta["wall_s"] > 0
+    assert set(meta["method_wall_s"]) == {"greedy", "random"}
+    assert meta["suites"][0]["content"]["suite"]["name"] == "tiny"
+    assert meta["arguments"]["executor"] == {"executor": "serial"}
+    # a resolved mission reruns with `ata run` to the very same scores
+    session = load_session(str(out / "missions" / "greedy__a__high.resolved.toml"))
+    again = run_mission(session)
+    expected = [float(r["score"]) for r in rows
+                if r["method"] == "greedy" and r["uncertainty"] == "high"]
+    assert again.total.tolist() == expected
+    assert "P(greedy beats)" in flat(res.output)
+
+
+def test_plain_mission_is_one_method(cli, tmp_path):
+    out = tmp_path / "out"
+    res = cli("eval", BASELINE_MISSION, RANDOM_MISSION, "-e", "serial", "--no-cache",
+              "--scenarios", 3, "--out", out, "-q")
+    assert res.exit_code == 0, res.output
+    _, rows = read_csv(out / "results.csv")
+    assert [(r["method"], r["setting"], r["uncertainty"]) for r in rows] == \
+        [("greedy", "a", "medium")] * 3 + [("random", "a", "medium")] * 3
+
+
+def test_filters(cli, suite, tmp_path):
+    out = tmp_path / "out"
+    res = cli("eval", suite, "-e", "serial", "--no-cache", "--methods", "random",
+              "--levels", "high", "--scenarios", 2, "--out", out, "-q")
+    assert res.exit_code == 0, res.output
+    _, rows = read_csv(out / "results.csv")
+    assert {(r["method"], r["uncertainty"]) for r in rows} == {("random", "high")}
+    assert len(rows) == 2
+
+
+# -- executors ----------------------------------------------------------------------------------
+def _rows(executor, suite, chunk_size, scenarios=5):
+    _, jobs = ev.plan([str(suite)], scenarios=scenarios)
+    with executor:
+        return ev.evaluate(jobs, executor, chunk_size=chunk_size).rows
+
+
+def test_rows_identical_across_executors_and_chunks(suite):
+    serial = _rows(SerialExecutor(), suite, chunk_size=5)
+    assert len(serial) == 20
+    assert without_wall(_rows(SerialExecutor(), suite, chunk_size=2)) == without_wall(serial)
+    assert without_wall(_rows(ProcessExecutor(2), suite, chunk_size=3)) == without_wall(serial)
+
+
+@pytest.mark.ray
+def test_rows_identical_on_ray(suite):
+    pytest.importorskip("ray")
+    from ata.core.executors import RayExecutor
+
+    serial = _rows(SerialExecutor(), suite, chunk_size=5, scenarios=3)
+    assert without_wall(_rows(RayExecutor(workers=2), suite, chunk_size=2, scenarios=3)) == \
+        without_wall(serial)
+
+
+def test_missing_ray_is_a_clear_error(cli, suite, monkeypatch):
+    import builtins
+
+    real_import = builtins.__import__
+
+    def no_ray(name, *args, **kwargs):
+        if name == "ray":
+            raise ImportError("no ray here")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_ray)
+    res = cli("eval", suite, "--executor", "ray", "--no-cache", "-q")
+    assert res.exit_code == 2
+    assert "pip install 'ata[ray]'" in flat(res.output)
+
+
+# -- validation before work ---------------------------------------------------------------------
+def _bad_suite(tmp_path, method: str) -> Path:
+    path = tmp_path / "bad_suite.toml"
+    path.write_text(SUITE + method, encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize("method, expected", [
+    (f'[[method]]\nname = "typo"\nmission = "{BASELINE_MISSION}"\n'
+     'set = ["components.initial=\'greedyy\'"]\n', "unknown policy 'greedyy'"),
+    (f'[[method]]\nname = "ATA-HRL"\nmission = "{HRL_MISSION}"\n'
+     'set = ["attention.checkpoint=\'/nonexistent.pt\'"]\n',
+     "/nonexistent.pt: checkpoint: no such checkpoint"),
+])
+def test_bad_method_fails_before_any_work(cli, tmp_path, method, expected):
+    suite = _bad_suite(tmp_path, method)
+    out = tmp_path / "out"
+    res = cli("eval", suite, "-e", "serial", "--out", out, "-q")
+    assert res.exit_code == 2, res.output
+    text = flat(res.output)
+    assert str(suite) in text and "method" in text and expected in text
+    assert "Traceback" not in res.output
+    assert not (out / "results.csv").exists() and not out.exists()
+
+
+@pytest.mark.parametrize("text, expected", [
+    ('[suite]\nlevels = ["low"]\n[[method]]\nname = "g"\nmission = "builtin:greedy"\n',
+     "[suite] key 'levels': unknown key"),
+    ('[suite]\n[[method]]\nname = "g"\nmission = "builtin:greedy"\ncolour = 1\n',
+     "[[method]] 'g' key 'colour': unknown key"),
+    ('[suite]\n[[method]]\nname = "g"\nmission = "builtin:greedy"\nset = ["mission.seed=3"]\n',
+     "sets mission.seed itself"),
+    ('[suite]\n[[method]]\nname = "g"\nmission = "nowhere.toml"\n', "no such mission file"),
+    ('[suite]\n[[method]]\nname = "g"\nmission = "builtin:greedy"\n'
+     '[[method]]\nname = "g"\nmission = "builtin:greedy"\n', "is defined twice"),
+    ('[suite]\nsettings = ["a"]\n[[method]]\nname = "g"\nmission = "builtin:greedy"\n'
+     '[method.setting.b]\nset = []\n', "for setting 'b', which it does not run at"),
+    ('[suite]\nname = "x"\n', "one or more [[method]] tables"),
+    ('title = "x"\n', "neither a suite"),
+])
+def test_suite_errors(cli, tmp_path, text, expected):
+    path = tmp_path / "s.toml"
+    path.write_text(text, encoding="utf-8")
+    res = cli("eval", path, "-e", "serial", "--no-cache", "-q", "--out", tmp_path / "out")
+    assert res.exit_code == 2, res.output
+    assert expected in flat(res.output) and str(path) in flat(res.output)
+    assert not (tmp_path / "out").exists()
+
+
+def test_per_setting_overrides(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text('[suite]\nsettings = ["a", "b"]\nuncertainty = ["low"]\nscenarios = 2\n'
+                    '[[method]]\nname = "g"\nmission = "builtin:greedy"\n'
+                    '[method.setting.b]\nset = ["greedy.human_time_cost=0.5"]\n',
+                    encoding="utf-8")
+    _, jobs = ev.plan([str(path)], validate=False)
+    costs = {j.setting: j.mission.component_settings["greedy"].human_time_cost for j in jobs}
+    assert costs["b"] == 0.5 and costs["a"] != 0.5
+    assert {j.mission.sizes.tasks for j in jobs} == {60, 130}
+
+
+# -- held-out scenarios -------------------------------------------------------------------------
+def test_eval_pairs_are_disjoint_from_training(suite):
+    from ata.learn.train import EVAL_SEED_OFFSET
+
+    assert ev.TRAIN_EVAL_SEED_OFFSET == EVAL_SEED_OFFSET
+    train = TrainSettings()
+    for seed in (0, train.seed, train.seed + EVAL_SEED_OFFSET):
+        _, jobs = ev.plan([str(suite)], seed=seed, scenarios=3)
+        for job in jobs:
+            e_seed, lo, hi = ev.eval_range(job.mission)
+            assert e_seed == seed and lo == ev.EVAL_FIRST_SCENARIO
+            for t_seed, t_lo, t_hi in ev.training_ranges(job.mission.train):
+                assert e_seed != t_seed or hi <= t_lo or t_hi <= lo
+    # the check itself: a mission on training's own pairs is refused
+    session = load_session(str(BASELINE_MISSION), [f"mission.seed={train.seed}",
+                                                   "mission.first_scenario=5"])
+    with pytest.raises(MissionError, match="held out"):
+        ev.check_held_out(session.mission)
+    long_train = TrainSettings(rl_steps=10 ** 9, batch_size=4096)
+    assert ev.training_ranges(long_train)[0][2] > ev.EVAL_FIRST_SCENARIO
+
+
+# -- the MILP cache -----------------------------------------------------------------------------
+def tiny_data(seed: int, P: int = 5, H: int = 2, R: int = 2) -> M.ScenarioData:
+    gen = np.random.default_rng(seed)
+    theta_s = gen.uniform(0, np.pi / 4, H)
+    theta_s[0] = 0.7
+    return M.ScenarioData(kind=gen.integers(0, 2, P), diff=gen.integers(0, 3, P),
+                          xy=gen.uniform(0, 2000, (P, 2)),
+                          eta=np.sin(gen.uniform(0, np.pi / 4, H)), lam=np.sin(theta_s),
+                          skill=tables.skill_band(theta_s), hours=gen.uniform(0, 1.5, H),
+                          rtype=np.array([0, 1] * (R // 2)), speed=np.array([8.0, 3.0] * (R // 2)),
+                          area_m=2000.0, horizon_s=600.0, event_p=0.2,
+                          fatigue_sigma=np.sqrt(0.1))
+
+
+def same_solution(a: M.Solution, b: M.Solution) -> bool:
+    triples = (a.triples is None and b.triples is None) or \
+        (a.triples is not None and b.triples is not None and np.array_equal(a.triples, b.triples))
+    return triples and (a.status, a.objective, a.bound, a.margin_scale, a.message,
+                        a.problems) == (b.status, b.objective, b.bound, b.margin_scale,
+                                        b.message, b.problems)
+
+
+def test_milp_cache_equals_fresh_solve(tmp_path, monkeypatch):
+    settings = M.MilpSettings()
+    data = [tiny_data(s) for s in range(4)]
+    policy = M.MilpPolicy(settings, None)
+    fresh = policy.solve_all(data)                       # no cache set: solved
+    assert M.cache_dir() is None
+    with M.solution_cache(tmp_path) as root:
+        first = policy.solve_all(data)                   # solved and stored
+        assert len(list((root / "milp").rglob("*.json"))) == 4
+
+        def no_solving(*args, **kwargs):
+            raise AssertionError("solved although cached")
+
+        monkeypatch.setattr(M, "solve_scenario", no_solving)
+        cached = policy.solve_all(data)                  # read back, nothing solved
+    assert M.cache_dir() is None
+    for f, a, c in zip(fresh, first, cached):
+        assert same_solution(f, a) and same_solution(f, c)
+    # the key: the scenario's data and the settings that shape the solution
+    key = M.cache_key(data[0], settings)
+    assert key == M.cache_key(tiny_data(0), M.MilpSettings(workers=4, chunk_size=3))
+    assert key != M.cache_key(data[0], M.MilpSettings(mip_rel_gap=0.05))
+    assert key != M.cache_key(data[1], settings)
+    changed = tiny_data(0)
+    changed.event_p = 0.4
+    assert key != M.cache_key(changed, settings)
+
+
+def test_milp_eval_rows_same_with_and_without_cache(cli, tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text(f'[suite]\nsettings = ["a"]\nuncertainty = ["medium"]\nscenarios = 3\n'
+                    f'[[method]]\nname = "ITA-MILP"\n'
+                    f'mission = "{ROOT / "examples" / "missions" / "milp_a.toml"}"\n',
+                    encoding="utf-8")
+    cache = tmp_path / "milp-cache"
+    outs = []
+    for i, flags in enumerate((["--no-cache"], ["--cache", cache], ["--cache", cache])):
+        out = tmp_path / f"out{i}"
+        res = cli("eval", path, "-e", "serial", "--out", out, "-q", *flags)
+        assert res.exit_code == 0, res.output
+        outs.append(read_csv(out / "results.csv")[1])
+    assert len(list(cache.rglob("*.json"))) == 3
+    strip = [[{k: v for k, v in r.items() if k not in ("wall_s", "milp_solve_s")} for r in rows]
+             for rows in outs]
+    assert strip[0] == strip[1] == strip[2]
+
+
+# -- the report ---------------------------------------------------------------------------------
+def test_bootstrap_ci_known_answers():
+    assert rep.bootstrap_ci(np.full(50, 3.5)) == (3.5, 3.5, 3.5)
+    mean, low, high = rep.bootstrap_ci([7.0])
+    assert mean == low == high == 7.0
+    assert all(math.isnan(x) for x in rep.bootstrap_ci([]))
+    x = np.random.default_rng(1).normal(10.0, 2.0, 4000)
+    mean, low, high = rep.bootstrap_ci(x)
+    half = 1.959964 * x.std(ddof=1) / math.sqrt(x.size)
+    assert mean == pytest.approx(x.mean())
+    assert low == pytest.approx(mean - half, abs=0.15 * half)
+    assert high == pytest.approx(mean + half, abs=0.15 * half)
+    assert rep.bootstrap_ci(x) == (mean, low, high)        # a fixed seed: the same every time
+
+
+def test_beat_probability():
+    assert rep.beat_probability([10, 20, 30, 40], [5, 20, 35, 10]) == 0.625
+    assert rep.beat_probability([1, 1], [1, 1]) == 0.5
+    assert math.isnan(rep.beat_probability([], []))
+
+
+FIELDS = ["method", "setting", "uncertainty", "scenario", "seed", "score", "upper_bound",
+          "fraction_of_u", "classified_share", "reallocations", "wall_s"]
+
+
+def write_results(path: Path) -> None:
+    """ATA-HRL, greedy and w/o.AUX at settings a and b, three levels, four scenarios; greedy's
+    rows at (a, low) are written in reverse order, so pairs must be matched by scenario id."""
+    rows = []
+    scores = {"ATA-HRL": [10, 20, 30, 40], "greedy": [5, 20, 35, 10], "w/o.AUX": [0, 0, 50, 50]}
+    for method, base in scores.items():
+        for setting in ("a", "b"):
+            for k, level in enumerate(("low", "medium", "high")):
+                block = []
+                for i, s in enumerate(base):
+                    score = s - 2 * k if setting == "a" else s + 1
+                    block.append({"method": method, "setting": setting, "uncertainty": level,
+                                  "scenario": 100 + i, "seed": 0, "score": score,
+                                  "upper_bound": 100.0, "fraction_of_u": score / 100.0,
+                                  "classified_share": 0.5, "reallocations": 1, "wall_s": 0.1})
+                if (method, setting, level) == ("greedy", "a", "low"):
+                    block.reverse()
+                rows += block
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        writer = csv.DictWriter(f, fieldnames=FIELDS)
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def test_report_table_and_probabilities(tmp_path):
+    write_results(tmp_path / "results.csv")
+    report = rep.summarize(rep.read_results(tmp_path))
+    assert report.reference == "ATA-HRL"
+    assert report.groups() == [(s, lv) for s in "ab" for lv in ("low", "medium", "high")]
+    cells = {(c.method, c.setting, c.level): c for c in report.cells}
+    assert cells[("greedy", "a", "low")].beats == 0.625      # 1 + 0.5 + 0 + 1 of 4
+    assert cells[("w/o.AUX", "a", "low")].beats == 0.5       # 1 + 1 + 0 + 0 of 4
+    assert math.isnan(cells[("ATA-HRL", "a", "low")].beats)
+    assert cells[("ATA-HRL", "b", "high")].mean == 26.0
+    assert cells[("greedy", "a", "low")].fraction_of_u == pytest.approx(0.175)
+    other = rep.summarize(rep.read_results(tmp_path), reference="greedy")
+    flipped = {(c.method, c.setting, c.level): c for c in other.cells}
+    assert flipped[("ATA-HRL", "a", "low")].beats == 0.375
+
+
+def test_report_command_writes_markdown_and_figures(cli, tmp_path):
+    pytest.importorskip("matplotlib")
+    write_results(tmp_path / "results.csv")
+    res = cli("report", tmp_path)
+    assert res.exit_code == 0, res.output
+    text = flat(res.output)
+    assert "setting a, low uncertainty" in text and "P(ATA-HRL beats)" in text
+    assert "0.625" in text
+    md = (tmp_path / "report.md").read_text()
+    assert "## Setting b, high uncertainty" in md
+    assert "| greedy | 4 | 17.5 [" in md and "| 0.625 |" in md
+    figs = sorted(p.name for p in tmp_path.glob("fig_*"))
+    assert figs == sorted(f"{stem}.{ext}" for stem in ("fig_setting_a", "fig_setting_b",
+                                                       "fig_ablations")
+                          for ext in ("png", "svg"))
+    assert all((tmp_path / f).stat().st_size > 1000 for f in figs)
+
+
+def test_report_options_and_errors(cli, tmp_path):
+    write_results(tmp_path / "results.csv")
+    res = cli("report", tmp_path, "--no-figures", "--reference", "greedy")
+    assert res.exit_code == 0, res.output
+    assert "P(greedy beats)" in flat(res.output)
+    assert not list(tmp_path.glob("fig_*"))
+    res = cli("report", tmp_path, "--no-figures", "--reference", "nobody")
+    assert res.exit_code == 2 and "no method 'nobody'" in flat(res.output)
+    res = cli("report", tmp_path / "missing")
+    assert res.exit_code == 2 and "no such results file" in flat(res.output)
+
+
+def test_report_skips_absent_figures(tmp_path):
+    pytest.importorskip("matplotlib")
+    write_results(tmp_path / "all.csv")
+    with open(tmp_path / "all.csv", newline="") as f:
+        rows = [r for r in csv.DictReader(f) if r["setting"] == "a" and r["method"] != "w/o.AUX"]
+    with open(tmp_path / "results.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=FIELDS)
+        writer.writeheader()
+        writer.writerows(rows)
+    rep.write_report(tmp_path)
+    assert sorted(p.name for p in tmp_path.glob("fig_*")) == ["fig_setting_a.png",
+                                                             "fig_setting_a.svg"]
