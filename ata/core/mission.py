@@ -105,7 +105,7 @@ class TrainSettings:
                            "episodes with epsilon-greedy agents, then makes dqn_updates steps")
     dqn_updates: int = param(32, min=1, help="gradient steps per DQN iteration")
     dqn_lr: float = param(1e-3, min=0.0, max=1.0, help="Adam learning rate of the agents")
-    dqn_gamma: float = param(0.8, min=0.0, max=1.0, help="discount per decision epoch")
+    dqn_gamma: float = param(0.9, min=0.0, max=1.0, help="discount per decision epoch")
     dqn_buffer: int = param(30000, min=64, help="replay buffer capacity, transitions per "
                             "member kind")
     dqn_minibatch: int = param(256, min=1, help="transitions per gradient step")
@@ -117,7 +117,9 @@ class TrainSettings:
     dqn_k: int = param(4, min=1, help="candidate POIs per agent (and roles a human may "
                        "release)")
     dqn_hidden: int = param(64, min=4, help="width of the agents' Q-networks")
-    reward_scale: float = param(20.0, min=1e-6, help="team points per unit of agent reward")
+    reward_scale: float = param(20.0, min=1e-6, help="points per unit of agent reward")
+    team_weight: float = param(0.2, min=0.0, help="weight of the team's points of the epoch "
+                               "in each agent's reward, beside the points of the POIs it holds")
     load_overload: float = param(0.5, min=0.0, help="load management: penalty per unit of "
                                  "overload (human utilisation above human_load_cap, robots "
                                  "holding more than 1.5 fair shares of the open POIs)")

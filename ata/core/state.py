@@ -172,6 +172,8 @@ class EpisodeRecord:
     allocations: np.ndarray             # (B, T, P, 3) int16: the allocation in force during epoch t
     upper_bound: np.ndarray             # (B,) the capacity-free upper bound U
     metrics: dict[str, np.ndarray] = field(default_factory=dict)   # (B,) per-scenario extras
+    task_gain: np.ndarray | None = None  # (B, P) points each POI's classification earned
+    task_epoch: np.ndarray | None = None  # (B, P) epoch of that classification (-1: never)
     warnings: list[str] = field(default_factory=list)   # for the run's summary
 
     @classmethod

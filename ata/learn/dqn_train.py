@@ -6,11 +6,15 @@ Each iteration rolls out ``batch_size`` training episodes with epsilon-greedy ag
 frozen attention ITA for AtRL-TR), stores every agent's transitions in its kind's replay buffer,
 and makes ``dqn_updates`` gradient steps. The reward of agent i for its action at epoch t is
 
-    r_i = r_perf(t) / reward_scale - load_overload * overload_i(t+1) - load_use * [a_i != keep]
+    r_i = (own_i(t) + team_weight * r_perf(t)) / reward_scale
+          - load_overload * overload_i(t+1) - load_use * [a_i != keep]
 
-the team's points of that epoch shared by every agent, plus the load management term of Wu et
-al.: overload (a human busier than ``human_load_cap``; a robot holding more than 1.5 fair shares
-of the open POIs) and needless use (any change costs a little).
+own_i(t) is the points earned in epoch t by the POIs agent i holds (as robot, navigator or
+classifier) in the allocation in force; r_perf(t) the team's points of the epoch, shared by
+every agent. A shared team reward alone leaves each agent's credit lost among the others' (it
+did not learn in our first runs; docs/training.md). The load management term is that of Wu et
+al.: overload (a human busier than ``human_load_cap``; a robot holding more than 1.5 fair
+shares of the open POIs) and needless use (any change costs a little).
 """
 
 from __future__ import annotations
@@ -110,18 +114,26 @@ class AgentLearner:
         frac = min(1.0, step / max(1, t.eps_decay_steps))
         return t.eps_start + frac * (t.eps_end - t.eps_start)
 
-    def store(self, log: list[Transition], r_perf: np.ndarray) -> None:
+    def store(self, log: list[Transition], record) -> None:
         """Turn one batch of episodes (decisions at epochs 1..T-1) into transitions."""
         t = self.t
+        H, R = log[0].human_a.shape[1], log[0].robot_a.shape[1]
         for i, step in enumerate(log):
             epoch = i + 1
             last = i == len(log) - 1
             nxt = step if last else log[i + 1]
             over_r, over_h = dqn.load_terms(nxt.inputs, t.human_load_cap)
-            team = r_perf[:, epoch] / t.reward_scale
-            for kind, a, over in (("robot", step.robot_a, over_r), ("human", step.human_a, over_h)):
+            gain = np.where(record.task_epoch == epoch, record.task_gain, 0.0)     # (B, P)
+            alloc = record.allocations[:, epoch].astype(np.int64)                   # (B, P, 3)
+            own_r = np.einsum("bp,bpr->br", gain, alloc[..., 0, None] == np.arange(R))
+            held_h = (alloc[..., 1, None] == np.arange(H)) | (alloc[..., 2, None] == np.arange(H))
+            own_h = np.einsum("bp,bph->bh", gain, held_h)
+            team = t.team_weight * record.r_perf[:, epoch][:, None]
+            for kind, a, over, own in (("robot", step.robot_a, over_r, own_r),
+                                       ("human", step.human_a, over_h, own_h)):
                 obs = getattr(step.inputs, f"{kind}_obs")
-                reward = team[:, None] - t.load_overload * over - t.load_use * (a != 0)
+                reward = (own + team) / t.reward_scale - t.load_overload * over \
+                    - t.load_use * (a != 0)
                 legal = getattr(nxt.inputs, f"{kind}_legal")
                 next_obs = getattr(nxt.inputs, f"{kind}_obs")
                 flat = lambda x: x.reshape(-1, *x.shape[2:])  # noqa: E731
@@ -192,7 +204,7 @@ def train_agents(trainer) -> None:
         eps = learner.epsilon(step)
         log: list[Transition] = []
         record = rollout(trainer, trainer._ids("dqn", step), mission, eps, log)
-        learner.store(log, record.r_perf)
+        learner.store(log, record)
         losses = [learner.update(trainer.gen) for _ in range(t.dqn_updates)]
         trainer.counters["dqn"] += 1
         trainer.counters["episodes"] += t.batch_size

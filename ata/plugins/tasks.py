@@ -86,6 +86,9 @@ class PoiTaskModel:
         t = sim.group("tasks")
         sim.record.upper_bound[:] = upper_bound(sim)
         classified = t.classified_at < sim.clock.horizon_s
+        sim.record.task_gain = np.where(classified, t.gain, 0.0)
+        sim.record.task_epoch = np.where(classified, np.floor(t.classified_at / sim.clock.epoch_s),
+                                         -1).astype(np.int64)
         sim.record.metrics["classified_share"] = classified.mean(axis=1)
         sim.record.metrics["correct_share"] = np.where(classified, t.gain > 0, False).sum(1) \
             / np.maximum(classified.sum(1), 1)
