@@ -368,8 +368,10 @@ def _render_report(report) -> None:
 
 @app.command()
 @user_errors
-def report(run_dir: Path = typer.Argument(..., metavar="DIR",
-                                          help="An `ata eval` output folder."),
+def report(run_dir: List[Path] = typer.Argument(..., metavar="DIR...",
+                                                help="`ata eval` output folders (several are "
+                                                     "read together; outputs go to the "
+                                                     "first)."),
            reference: Optional[str] = typer.Option(
                None, "--reference", "-r",
                help="The method the others are compared with (default: ATA-HRL if present, "

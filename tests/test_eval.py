@@ -434,3 +434,26 @@ def test_report_skips_absent_figures(tmp_path):
     rep.write_report(tmp_path)
     assert sorted(p.name for p in tmp_path.glob("fig_*")) == ["fig_setting_a.png",
                                                              "fig_setting_a.svg"]
+
+
+def test_report_reads_several_evaluations_together(cli, tmp_path):
+    write_results(tmp_path / "all.csv")
+    with open(tmp_path / "all.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    for name, keep in (("one", lambda r: r["method"] != "greedy"),
+                       ("two", lambda r: r["method"] == "greedy")):
+        (tmp_path / name).mkdir()
+        with open(tmp_path / name / "results.csv", "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=FIELDS)
+            writer.writeheader()
+            writer.writerows([r for r in rows if keep(r)])
+    merged = rep.summarize(rep.read_results([tmp_path / "one", tmp_path / "two"]))
+    whole = rep.summarize(rep.read_results(tmp_path / "all.csv"))
+    key = lambda c: (c.method, c.setting, c.level)  # noqa: E731
+    assert sorted(map(key, merged.cells)) == sorted(map(key, whole.cells))
+    assert {key(c): c.beats for c in merged.cells if c.method == "greedy"} == \
+        {key(c): c.beats for c in whole.cells if c.method == "greedy"}
+    res = cli("report", tmp_path / "one", tmp_path / "two", "--no-figures")
+    assert res.exit_code == 0 and (tmp_path / "one" / "report.md").exists()
+    res = cli("report", tmp_path / "one", tmp_path / "one", "--no-figures")
+    assert res.exit_code == 2 and "appears twice" in flat(res.output)

@@ -79,8 +79,7 @@ def level_key(level: str) -> tuple[int, str]:
     return (order.index(level) if level in order else len(order), level)
 
 
-def read_results(path: str | Path) -> Results:
-    """Read an evaluation's results.csv (methods keep their order of first appearance)."""
+def _read_one(path: str | Path) -> tuple[list[dict[str, str]], list[str]]:
     path = Path(path)
     if path.is_dir():
         path = path / "results.csv"
@@ -97,6 +96,24 @@ def read_results(path: str | Path) -> Results:
                            file=str(path))
     if not rows:
         raise MissionError("", None, "has no rows", file=str(path))
+    return rows, list(header)
+
+
+def read_results(path: str | Path | list) -> Results:
+    """Read an evaluation's results.csv (methods keep their order of first appearance). Given
+    several paths (evaluations run apart, with the same seed), their rows are read together; a
+    (method, setting, level, scenario) found twice is an error."""
+    paths = path if isinstance(path, (list, tuple)) else [path]
+    rows, header = [], []
+    for p in paths:
+        more, cols = _read_one(p)
+        rows += more
+        header += [c for c in cols if c not in header]
+    keys = [(r["method"], r["setting"], r["uncertainty"], r["scenario"]) for r in rows]
+    if len(set(keys)) != len(keys):
+        raise MissionError("", None, "a (method, setting, uncertainty, scenario) appears twice "
+                           "in the results read together", file=str(paths[0]))
+    rows = [{k: r.get(k, "") or "" for k in header} for r in rows]
     cols: dict[str, np.ndarray] = {}
     for name in header:
         raw = [r[name] for r in rows]
@@ -327,9 +344,11 @@ def figures(report: Report, out_dir: str | Path) -> list[Path]:
 
 def write_report(run_dir: str | Path, reference: str | None = None, with_figures: bool = True,
                  resamples: int = RESAMPLES) -> tuple[Report, list[Path]]:
-    """Read DIR/results.csv; write DIR/report.md and (unless told not to) the figures."""
-    run_dir = Path(run_dir)
-    report = summarize(read_results(run_dir), reference, resamples)
+    """Read DIR/results.csv (of one folder, or of several read together); write report.md and
+    (unless told not to) the figures into the first folder."""
+    dirs = [Path(d) for d in run_dir] if isinstance(run_dir, (list, tuple)) else [Path(run_dir)]
+    run_dir = dirs[0]
+    report = summarize(read_results(dirs), reference, resamples)
     if with_figures:
         _pyplot()                      # a missing matplotlib fails before anything is written
     path = run_dir / "report.md"
