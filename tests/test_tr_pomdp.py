@@ -208,3 +208,28 @@ def test_cli_train_trp_and_bad_checkpoint(tmp_path):
     (tmp_path / "bad.pt").write_bytes(b"not a checkpoint")
     with pytest.raises(CheckpointError):
         TRPOMDPPolicy(TRPOMDPPolicy.Settings(checkpoint=str(tmp_path / "bad.pt")), None)
+
+
+SHIPPED = ["tr_pomdp_a", "tr_pomdp_b", "atrl_tr_a", "atrl_tr_b"]
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_shipped_weights_load_and_run(name):
+    path = T.TRP_MISSION.parents[2] / "examples" / "missions" / f"{name}.toml"
+    s = load_session(str(path), ["mission.scenarios=2"])
+    data = read_checkpoint(T.TRP_MISSION.parent.parent / "weights" / f"{name}.pt")
+    assert data["counters"]["dqn"] > 0 and "replay" not in data
+    assert f"setting = \"{name[-1]}\"" in data["mission"]
+    result = run_mission(s)
+    assert result.reallocations.tolist() == [29, 29]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["tr_pomdp_a", "atrl_tr_a"])
+def test_shipped_agents_beat_random_on_held_out_scenarios(name):
+    path = T.TRP_MISSION.parents[2] / "examples" / "missions"
+    common = ["mission.scenarios=200", "mission.first_scenario=1099511627776"]
+    learned = run_mission(load_session(str(path / f"{name}.toml"), common))
+    random = run_mission(load_session(str(path / "random_baseline.toml"), common))
+    diff = learned.total - random.total
+    assert diff.mean() - 2 * diff.std(ddof=1) / np.sqrt(diff.size) > 0
