@@ -118,12 +118,12 @@ class TrainSettings:
                        "release)")
     dqn_hidden: int = param(64, min=4, help="width of the agents' Q-networks")
     reward_scale: float = param(20.0, min=1e-6, help="points per unit of agent reward")
-    team_weight: float = param(0.2, min=0.0, help="weight of the team's points of the epoch "
+    team_weight: float = param(0.5, min=0.0, help="weight of the team's points of the epoch "
                                "in each agent's reward, beside the points of the POIs it holds")
-    load_overload: float = param(0.5, min=0.0, help="load management: penalty per unit of "
+    load_overload: float = param(0.1, min=0.0, help="load management: penalty per unit of "
                                  "overload (human utilisation above human_load_cap, robots "
                                  "holding more than 1.5 fair shares of the open POIs)")
-    load_use: float = param(0.02, min=0.0, help="load management: penalty per non-idle "
+    load_use: float = param(0.005, min=0.0, help="load management: penalty per non-idle "
                             "action (discourages needless changes)")
     human_load_cap: float = param(0.65, min=0.0, max=0.99, help="utilisation above which a "
                                   "human counts as overloaded")
