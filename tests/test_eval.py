@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from _support import tiny_data
 from ata.cli import app
 from ata.core import evaluate as ev
 from ata.core import report as rep
@@ -20,7 +21,6 @@ from ata.core.errors import MissionError
 from ata.core.executors import ProcessExecutor, SerialExecutor
 from ata.core.mission import TrainSettings
 from ata.core.runner import BASELINE_MISSION, load_session, run_mission
-from ata.plugins import tables
 from ata.plugins.policies import milp as M
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -259,19 +259,6 @@ def test_eval_pairs_are_disjoint_from_training(suite):
 
 
 # -- the MILP cache -----------------------------------------------------------------------------
-def tiny_data(seed: int, P: int = 5, H: int = 2, R: int = 2) -> M.ScenarioData:
-    gen = np.random.default_rng(seed)
-    theta_s = gen.uniform(0, np.pi / 4, H)
-    theta_s[0] = 0.7
-    return M.ScenarioData(kind=gen.integers(0, 2, P), diff=gen.integers(0, 3, P),
-                          xy=gen.uniform(0, 2000, (P, 2)),
-                          eta=np.sin(gen.uniform(0, np.pi / 4, H)), lam=np.sin(theta_s),
-                          skill=tables.skill_band(theta_s), hours=gen.uniform(0, 1.5, H),
-                          rtype=np.array([0, 1] * (R // 2)), speed=np.array([8.0, 3.0] * (R // 2)),
-                          area_m=2000.0, horizon_s=600.0, event_p=0.2,
-                          fatigue_sigma=np.sqrt(0.1))
-
-
 def same_solution(a: M.Solution, b: M.Solution) -> bool:
     triples = (a.triples is None and b.triples is None) or \
         (a.triples is not None and b.triples is not None and np.array_equal(a.triples, b.triples))
@@ -282,7 +269,7 @@ def same_solution(a: M.Solution, b: M.Solution) -> bool:
 
 def test_milp_cache_equals_fresh_solve(tmp_path, monkeypatch):
     settings = M.MilpSettings()
-    data = [tiny_data(s) for s in range(4)]
+    data = [tiny_data(s, P=5) for s in range(4)]
     policy = M.MilpPolicy(settings, None)
     fresh = policy.solve_all(data)                       # no cache set: solved
     assert M.cache_dir() is None
@@ -300,10 +287,10 @@ def test_milp_cache_equals_fresh_solve(tmp_path, monkeypatch):
         assert same_solution(f, a) and same_solution(f, c)
     # the key: the scenario's data and the settings that shape the solution
     key = M.cache_key(data[0], settings)
-    assert key == M.cache_key(tiny_data(0), M.MilpSettings(workers=4, chunk_size=3))
+    assert key == M.cache_key(tiny_data(0, P=5), M.MilpSettings(workers=4, chunk_size=3))
     assert key != M.cache_key(data[0], M.MilpSettings(mip_rel_gap=0.05))
     assert key != M.cache_key(data[1], settings)
-    changed = tiny_data(0)
+    changed = tiny_data(0, P=5)
     changed.event_p = 0.4
     assert key != M.cache_key(changed, settings)
 

@@ -5,6 +5,7 @@ import pytest
 import torch
 from typer.testing import CliRunner
 
+from _support import whole_and_killed
 from ata.cli import app
 from ata.core.kernel import Simulation
 from ata.core.runner import load_session
@@ -101,25 +102,9 @@ def test_rl_step_changes_the_policy_and_logs(tmp_path):
     assert "rl,2" in rows[-1]
 
 
-class Killed(Exception):
-    pass
-
-
 @pytest.mark.parametrize("phase, step", [("aux", "2"), ("rl", "1")])
 def test_resume_after_kill_matches_an_uninterrupted_run(tmp_path, phase, step):
-    s = session()
-    whole = T.Trainer(s, tmp_path / "whole")
-    whole.run()
-
-    def kill(row):
-        if row["phase"] == phase and str(row["step"]) == step:
-            raise Killed
-
-    broken = T.Trainer(s, tmp_path / "broken", on_row=kill)
-    with pytest.raises(Killed):
-        broken.run()
-    resumed = T.Trainer(load_session(str(tmp_path / "broken" / "mission.resolved.toml")),
-                        tmp_path / "broken", resume=True)
+    whole, resumed = whole_and_killed(session(), tmp_path, phase, step)
     assert resumed.counters[phase] == int(step) - 1 or resumed.counters[phase] == int(step)
     assert resumed.counters != whole.counters
     resumed.run()

@@ -6,6 +6,7 @@ import itertools
 import numpy as np
 import pytest
 
+from _support import tiny_data
 from ata.core.runner import BASELINE_MISSION
 from ata.core.kernel import Simulation
 from ata.core.runner import load_session, run_mission
@@ -15,19 +16,6 @@ from ata.plugins.policies import milp as M
 
 MILP_SLOTS = ["components.initial='milp'", "components.condition='never'",
               "components.reallocation='milp'"]
-
-
-def tiny_data(seed: int, P: int = 4, H: int = 2, R: int = 2) -> M.ScenarioData:
-    gen = np.random.default_rng(seed)
-    theta_s = gen.uniform(0, np.pi / 4, H)
-    theta_s[0] = 0.7                       # one highly skilled human, so navigators are options
-    return M.ScenarioData(kind=gen.integers(0, 2, P), diff=gen.integers(0, 3, P),
-                          xy=gen.uniform(0, 2000, (P, 2)),
-                          eta=np.sin(gen.uniform(0, np.pi / 4, H)), lam=np.sin(theta_s),
-                          skill=tables.skill_band(theta_s), hours=gen.uniform(0, 1.5, H),
-                          rtype=np.array([0, 1] * (R // 2)), speed=np.array([8.0, 3.0] * (R // 2)),
-                          area_m=2000.0, horizon_s=600.0, event_p=0.2,
-                          fatigue_sigma=np.sqrt(0.1))
 
 
 def brute_force(model: M.Model) -> float:

@@ -5,6 +5,7 @@ import pytest
 import torch
 from typer.testing import CliRunner
 
+from _support import whole_and_killed
 from ata.cli import app
 from ata.core.kernel import Simulation
 from ata.core.runner import load_session, run_mission
@@ -169,24 +170,8 @@ def test_training_smoke_and_checkpoint_round_trip(tmp_path, plugins):
     assert result.reallocations.tolist() == [29, 29, 29]
 
 
-class Killed(Exception):
-    pass
-
-
 def test_resume_after_kill_matches_an_uninterrupted_run(tmp_path):
-    s = session()
-    whole = T.Trainer(s, tmp_path / "whole")
-    whole.run()
-
-    def kill(row):
-        if row["phase"] == "dqn" and str(row["step"]) == "2":
-            raise Killed
-
-    broken = T.Trainer(s, tmp_path / "broken", on_row=kill)
-    with pytest.raises(Killed):
-        broken.run()
-    resumed = T.Trainer(load_session(str(tmp_path / "broken" / "mission.resolved.toml")),
-                        tmp_path / "broken", resume=True)
+    whole, resumed = whole_and_killed(session(), tmp_path, "dqn", "2")
     assert resumed.counters["dqn"] == 1
     resumed.run()
     assert resumed.counters == whole.counters

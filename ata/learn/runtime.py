@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import torch
 
@@ -18,7 +18,7 @@ from ata.core.settings import param
 from ata.learn.nets import ATAHRLNet, NetConfig
 
 WEIGHTS = Path(__file__).resolve().parent.parent / "weights"
-_CACHE: dict[str, ATAHRLNet] = {}
+_CACHE: dict[tuple[str, str], torch.nn.Module] = {}
 
 
 def resolve(spec: str) -> Path:
@@ -68,15 +68,22 @@ def net_from_checkpoint(data: dict[str, Any], path: str | Path,
     return net
 
 
+def load_cached(spec: str, build: Callable[[dict[str, Any], Path], torch.nn.Module],
+                kind: str = "net") -> Any:
+    """What `build(checkpoint data, path)` makes of a checkpoint, in evaluation mode, built once
+    per process for each (kind, file)."""
+    path = resolve(spec)
+    key = (kind, str(path.resolve()) if path.exists() else str(path))
+    if key not in _CACHE:
+        module = build(read_checkpoint(path), path)
+        module.eval()
+        _CACHE[key] = module
+    return _CACHE[key]
+
+
 def load_net(spec: str) -> ATAHRLNet:
     """The network of a checkpoint, in evaluation mode, cached per process."""
-    path = resolve(spec)
-    key = str(path.resolve()) if path.exists() else str(path)
-    if key not in _CACHE:
-        net = net_from_checkpoint(read_checkpoint(path), path)
-        net.eval()
-        _CACHE[key] = net
-    return _CACHE[key]
+    return load_cached(spec, net_from_checkpoint)
 
 
 @dataclass

@@ -20,10 +20,7 @@ from ata import hookimpl
 from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext
 from ata.learn import dqn
-from ata.learn.runtime import CheckpointError, read_checkpoint, resolve
-
-_CACHE: dict[str, dqn.AgentNets] = {}
-
+from ata.learn.runtime import CheckpointError, load_cached
 
 def agents_from_checkpoint(data: dict[str, Any], path: str | Path) -> dqn.AgentNets:
     """The agents' Q-networks stored in a checkpoint (its ``agents`` entry)."""
@@ -40,13 +37,8 @@ def agents_from_checkpoint(data: dict[str, Any], path: str | Path) -> dqn.AgentN
 
 
 def load_agents(spec: str) -> dqn.AgentNets:
-    path = resolve(spec)
-    key = str(path.resolve()) if path.exists() else str(path)
-    if key not in _CACHE:
-        nets = agents_from_checkpoint(read_checkpoint(path), path)
-        nets.eval()
-        _CACHE[key] = nets
-    return _CACHE[key]
+    """The agents of a checkpoint, in evaluation mode, cached per process."""
+    return load_cached(spec, agents_from_checkpoint, kind="agents")
 
 
 @dataclass
