@@ -7,6 +7,11 @@ from ata.plugins import tables
 from ata.plugins.policies import milp as M
 
 
+def flat(text: str) -> str:
+    """Whitespace collapsed, so that a message wrapped by rich still matches."""
+    return " ".join(text.split())
+
+
 def assert_trace(actual, expected):
     """Events equal one by one; floats to 1e-9 s."""
     assert len(actual) == len(expected), f"trace {actual}\n  expected {expected}"

@@ -11,10 +11,9 @@ import sys
 import tomllib
 
 import pytest
-from typer.testing import CliRunner
 
+from _support import flat
 from ata import __version__
-from ata.cli import app
 from ata.core import runner as runner_mod
 from ata.core.mission import ComponentSlots, MissionSettings
 from ata.core.registry import BUILTIN_PLUGINS, collect_components, get_plugin_manager
@@ -35,22 +34,10 @@ BUILTIN_COMPONENTS = {
 
 
 @pytest.fixture
-def cli():
-    # a wide terminal, so that rich does not wrap or truncate the lines asserted on
-    runner = CliRunner(env={"COLUMNS": "200"})
-    return lambda *args: runner.invoke(app, [str(a) for a in args])
-
-
-@pytest.fixture
 def tiny(tmp_path):
     path = tmp_path / "tiny.toml"
     path.write_text(TINY, encoding="utf-8")
     return path
-
-
-def flat(text: str) -> str:
-    """Whitespace collapsed, so that a message wrapped by rich still matches."""
-    return " ".join(text.split())
 
 
 def read_rows(path):

@@ -11,10 +11,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
 
-from _support import tiny_data
-from ata.cli import app
+from _support import flat, tiny_data
 from ata.core import evaluate as ev
 from ata.core import report as rep
 from ata.core.errors import MissionError
@@ -51,20 +49,10 @@ def _isolated(tmp_path, monkeypatch):
 
 
 @pytest.fixture
-def cli():
-    runner = CliRunner(env={"COLUMNS": "200"})
-    return lambda *args: runner.invoke(app, [str(a) for a in args])
-
-
-@pytest.fixture
 def suite(tmp_path):
     path = tmp_path / "suite.toml"
     path.write_text(SUITE, encoding="utf-8")
     return path
-
-
-def flat(text: str) -> str:
-    return " ".join(text.split())
 
 
 def read_csv(path):

@@ -13,10 +13,8 @@ from pathlib import Path
 import numpy as np
 import pluggy
 import pytest
-from typer.testing import CliRunner
 
 from ata import hookimpl
-from ata.cli import app
 from ata.core import runner
 from ata.core.kernel import Simulation
 from ata.core.registry import collect_components, get_plugin_manager, plugin_version
@@ -43,12 +41,6 @@ def dropout(tmp_path, monkeypatch):
     monkeypatch.syspath_prepend(str(EXAMPLE))
     fake_install(site, monkeypatch, "ata-dropout", "ata_dropout")
     return "ata_dropout"
-
-
-@pytest.fixture
-def cli():
-    runner_ = CliRunner(env={"COLUMNS": "200"})
-    return lambda *args: runner_.invoke(app, [str(a) for a in args])
 
 
 def write_mission(path: Path, probability: float, fill: float = 0.25,

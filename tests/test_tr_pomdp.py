@@ -3,10 +3,8 @@
 import numpy as np
 import pytest
 import torch
-from typer.testing import CliRunner
 
 from _support import whole_and_killed
-from ata.cli import app
 from ata.core.kernel import Simulation
 from ata.core.runner import load_session, run_mission
 from ata.core.state import Allocation
@@ -180,14 +178,12 @@ def test_resume_after_kill_matches_an_uninterrupted_run(tmp_path):
         assert torch.allclose(a, b, atol=1e-6), k
 
 
-def test_cli_train_trp_and_bad_checkpoint(tmp_path):
-    runner = CliRunner()
+def test_cli_train_trp_and_bad_checkpoint(cli, tmp_path):
     out = tmp_path / "run"
-    res = runner.invoke(app, ["train", "--plugins", "trp", "--out", str(out),
-                              *[x for kv in TINY for x in ("--set", kv)]])
+    res = cli("train", "--plugins", "trp", "--out", out, *[x for kv in TINY for x in ("--set", kv)])
     assert res.exit_code == 0, res.output
     assert (out / "best.pt").exists() and "dqn" in (out / "log.csv").read_text()
-    res = runner.invoke(app, ["train", "--plugins", "trp,ctr"])
+    res = cli("train", "--plugins", "trp,ctr")
     assert res.exit_code == 2 and "name one" in res.output
     # a checkpoint without agents is refused with a clear message
     (tmp_path / "bad.pt").write_bytes(b"not a checkpoint")
