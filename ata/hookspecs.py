@@ -107,8 +107,13 @@ def ata_reallocate(ctx: "DecisionContext", active: np.ndarray) -> "Allocation":
 
 
 @hookspec
-def ata_allocation_changed(sim: "SimState", changed: np.ndarray) -> None:
-    """React to a new allocation in ``sim.allocation``; ``changed`` (B, P) marks changed tasks."""
+def ata_allocation_changed(sim: "SimState", changed: np.ndarray,
+                           previous: "Allocation | None") -> None:
+    """React to a new allocation in ``sim.allocation``; ``changed`` (B, P) marks changed tasks.
+
+    :param previous: the allocation in force before the change; None for the initial one.
+        The team models charge the re-tasking cost of MODEL.md section 3a from the difference.
+    """
 
 
 # --- tick: every tick_s seconds -----------------------------------------------------------------

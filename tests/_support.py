@@ -1,10 +1,29 @@
-"""Helpers shared by the tests: kernel traces, small MILP instances."""
+"""Helpers shared by the tests: kernel traces, tiny hand-built scenarios, small MILP
+instances, kill-and-resume.
+
+Tiny scenarios: robots start at the base (1000, 1000); positions are given relative to it.
+Codes: kind 0 = air, 1 = ground; difficulty 0/1/2 = low/medium/high (15/25/35 points); quality
+0..3 = Low/Medium/Upper-Medium/High; robot type 0 = UAV (8 m/s), 1 = UGV (3 m/s); skill band
+0/1/2 = low/medium/high (speed x 2/3, 1, 1.5). Observed positions are divided by the 2000 m side.
+"""
+
+import math
 
 import numpy as np
 import pytest
 
+from ata import hookimpl
+from ata.core.kernel import Simulation
+from ata.core.runner import BASELINE_MISSION, load_session
+from ata.core.state import Allocation
 from ata.plugins import tables
 from ata.plugins.policies import milp as M
+
+BASE = 1000.0
+AIR, GROUND = 0, 1
+LOW, MED, HIGH = 0, 1, 2
+UAV, UGV = 0, 1
+INF = math.inf
 
 
 def flat(text: str) -> str:
@@ -61,3 +80,107 @@ def whole_and_killed(session, tmp_path, phase: str, step: str):
     resumed = T.Trainer(load_session(str(tmp_path / "broken" / "mission.resolved.toml")),
                         tmp_path / "broken", resume=True)
     return whole, resumed
+
+
+# --- inline components and helpers ----------------------------------------------------------------
+
+class Fixed:
+    """A policy that allocates the given per-POI triples in every scenario, at t = 0 and at every
+    reallocation; it remembers the contexts it saw."""
+
+    def __init__(self, robot, navigator, classifier):
+        self.triples = (robot, navigator, classifier)
+        self.seen = []
+
+    def _alloc(self, ctx):
+        shape = ctx.reallocatable.shape
+        return Allocation(*(np.broadcast_to(np.asarray(x, dtype=np.int64), shape).copy()
+                            for x in self.triples))
+
+    @hookimpl
+    def ata_initial_allocation(self, ctx):
+        self.seen.append(ctx)
+        return self._alloc(ctx)
+
+    @hookimpl
+    def ata_reallocate(self, ctx, active):
+        self.seen.append(ctx)
+        return self._alloc(ctx)
+
+
+class Scripted(Fixed):
+    """A reallocation policy whose triples are a function of the epoch: script(epoch) -> triples."""
+
+    def __init__(self, script):
+        super().__init__(*script(0))
+        self.script = script
+
+    @hookimpl
+    def ata_reallocate(self, ctx, active):
+        self.seen.append((ctx.epoch, ctx.reallocatable.copy()))
+        self.triples = self.script(ctx.epoch)
+        return self._alloc(ctx)
+
+
+def make_sim(triples, *, humans=1, robots=1, tasks=1, batch=1, condition="never",
+             reallocation=None, extra=()):
+    """A traced simulation of `batch` scenarios, reset, with no uncertainty at all; `extra`
+    holds more --set overrides (the re-tasking costs, say)."""
+    s = load_session(str(BASELINE_MISSION), [*extra, "mission.setting='custom'",
+                                             f"mission.humans={humans}",
+                            f"mission.robots={robots}", f"mission.tasks={tasks}",
+                            "mission.uncertainty='none'", f"mission.scenarios={batch}",
+                            f"mission.batch_size={batch}", f"components.condition='{condition}'"])
+    initial = Fixed(*triples)
+    sim = Simulation(s.mission, s.registry, list(range(batch)), trace=True,
+                     overrides={"initial": initial,
+                                "reallocation": reallocation or Fixed(*triples)})
+    sim.reset()
+    sim.policy = initial
+    return sim
+
+
+def set_robots(sim, types, fail_time=None):
+    r = sim.sim.group("robots")
+    r.type[:] = types
+    r.speed[:] = np.where(np.asarray(types) == UAV, 8.0, 3.0)
+    if fail_time is not None:
+        r.fail_time[:] = fail_time
+
+
+def set_tasks(sim, spec):
+    """spec: one (dx, dy, kind, difficulty, outcome_u) per POI; estimate = truth."""
+    t = sim.sim.group("tasks")
+    for p, (dx, dy, kind, diff, u) in enumerate(spec):
+        t.pos[:, p] = (BASE + dx, BASE + dy)
+        t.est_kind[:, p] = t.true_kind[:, p] = kind
+        t.est_diff[:, p] = t.true_diff[:, p] = diff
+        t.outcome_u[:, p] = u
+        t.reveal_time[:, p] = INF
+
+
+def set_humans(sim, spec):
+    """spec: one (skill band, eta, lambda, t0 hours) per human."""
+    h = sim.sim.group("humans")
+    for i, (skill, eta, lam, t0) in enumerate(spec):
+        h.skill[:, i], h.eta[:, i], h.lam[:, i], h.t0_h[:, i] = skill, eta, lam, t0
+
+
+def run_epochs(sim, n=None):
+    """Step n epochs (default: to the horizon); end the episode when the horizon is reached."""
+    n = sim.sim.clock.n_epochs - sim.sim.epoch if n is None else n
+    for _ in range(n):
+        sim.step_epoch()
+    if sim.sim.epoch == sim.sim.clock.n_epochs:
+        sim.pm.hook.ata_episode_end(sim=sim.sim)
+
+
+def observed_after(sim, n):
+    """Step until epoch n has been observed; return that epoch's observed S."""
+    while sim.sim.epoch <= n:
+        sim.step_epoch()
+    return sim.last_context.observed
+
+
+def perf(sim, b=0):
+    return {k: v for k, v in enumerate(sim.sim.record.r_perf[b]) if v != 0}

@@ -62,7 +62,10 @@ class Condition:
 
 
 def session(*, humans=1, robots=1, tasks=2, batch=1, condition="never", extra=()):
+    """A tiny mission with no uncertainty and free reallocation (the re-tasking cost of MODEL.md
+    section 3a has its own tests in test_dynamics.py)."""
     return load_session(str(BASELINE_MISSION), ["mission.setting='custom'", f"mission.humans={humans}",
+                               "human.rebrief_s=0", "robot.replan_s=0",
                                f"mission.robots={robots}", f"mission.tasks={tasks}",
                                "mission.uncertainty='none'", f"mission.scenarios={batch}",
                                f"mission.batch_size={batch}", f"components.condition='{condition}'",

@@ -149,7 +149,8 @@ class Simulation:
             alloc = self._check(self._callers["initial"](ctx=ctx), "initial")
             sim.allocation = alloc
             sim.log("allocate", k, int(sim.batch_size))
-            hook.ata_allocation_changed(sim=sim, changed=np.ones(alloc.robot.shape, dtype=bool))
+            hook.ata_allocation_changed(sim=sim, changed=np.ones(alloc.robot.shape, dtype=bool),
+                                        previous=None)
         else:
             active = np.asarray(self._callers["condition"](ctx=ctx), dtype=bool)
             if active.shape != (sim.batch_size,):
@@ -168,7 +169,7 @@ class Simulation:
                 sim.record.reallocated[:, k] = active
                 sim.log("reallocate", k, int(active.sum()), int(changed.sum()))
                 if changed.any():
-                    hook.ata_allocation_changed(sim=sim, changed=changed)
+                    hook.ata_allocation_changed(sim=sim, changed=changed, previous=previous)
         sim.record.allocations[:, k] = sim.allocation.stack()
         for j in range(clock.ticks_per_epoch):
             sim.tick = k * clock.ticks_per_epoch + j

@@ -5,6 +5,10 @@ Group ``humans``: ``eta``, ``lam``, ``theta_c``, ``theta_s``, ``skill``, ``t0_h`
 at the start), ``busy_until``, ``booked_s`` (busy seconds booked so far), ``busy_ticks``
 (B, H, n_ticks: busy seconds in each tick), ``sa``, ``sa_time``, ``last_robot``.
 
+A reallocation that changes a human's work (an item gained or lost, as navigator or classifier,
+that had not started) re-briefs that human: busy for ``rebrief_s`` before the next item, and SA
+drops as on a switch of robot (MODEL.md section 3a); ``rebriefs`` counts them.
+
 Work items come from the robot model: a classification waits in ``tasks.cls_ready`` (the time
 the image was captured), a navigation leg in ``robots.nav_ready`` with its ``nav_duration``.
 Each human takes the earliest-ready item among those addressed to them.
@@ -18,7 +22,7 @@ import numpy as np
 
 from ata import hookimpl
 from ata.core.settings import param
-from ata.core.state import Observation, SimState
+from ata.core.state import Allocation, Observation, SimState
 from ata.plugins import tables
 
 HUMAN_INHERENT = ("cognitive", "expertise", "skill")
@@ -39,6 +43,9 @@ class HumanModel:
         sa_drop: float = param(0.25, min=0.0, max=1.0, help="SA lost on switching robot")
         sa_recovery_per_min: float = param(0.1, min=0.0, max=1.0, help="SA regained a minute")
         switch_cost_s: float = param(30.0, min=0.0, help="extra busy time (1 - SA) * this")
+        rebrief_s: float = param(20.0, min=0.0, max=3600.0,
+                                 help="re-briefing time of a human whose work a reallocation "
+                                      "changes, s (0: reallocation costs humans nothing)")
 
     def __init__(self, settings: "HumanModel.Settings", mission: object):
         self.settings = settings
@@ -63,6 +70,7 @@ class HumanModel:
         h.cls_fatigued = np.zeros((B, H))
         h.cls_u_low = np.zeros((B, H))
         h.cls_u_high = np.zeros((B, H))
+        h.rebriefs = np.zeros((B, H))
         self._edges = np.arange(sim.clock.n_ticks) * sim.clock.tick_s
 
     @hookimpl
@@ -168,11 +176,7 @@ class HumanModel:
             h.cls_u_low[cb, ch] += u < 0.45
             h.cls_u_high[cb, ch] += u >= 0.65
         end = begin + duration
-        overlap = np.clip(np.minimum(end[:, None], self._edges + sim.clock.tick_s)
-                          - np.maximum(start[:, None], self._edges), 0.0, None)
-        h.busy_ticks[b, hh] += overlap
-        h.booked_s[b, hh] += end - start
-        h.busy_until[b, hh] = end
+        self._book(sim, b, hh, start, end)
         h.sa[b, hh] = sa
         h.sa_time[b, hh] = start
         h.last_robot[b, hh] = robot
@@ -180,6 +184,45 @@ class HumanModel:
             for i in range(b.size):
                 sim.log("start", "nav" if is_nav[i] else "classify", float(start[i]), int(b[i]),
                         int(hh[i]), int(entity[i]), float(end[i]))
+
+    def _book(self, sim: SimState, b: np.ndarray, hh: np.ndarray, start: np.ndarray,
+              end: np.ndarray) -> None:
+        """Book [start, end) as busy time of the given (b, h) pairs (each pair at most once)."""
+        h = sim.group("humans")
+        overlap = np.clip(np.minimum(end[:, None], self._edges + sim.clock.tick_s)
+                          - np.maximum(start[:, None], self._edges), 0.0, None)
+        h.busy_ticks[b, hh] += overlap
+        h.booked_s[b, hh] += end - start
+        h.busy_until[b, hh] = end
+
+    @hookimpl
+    def ata_allocation_changed(self, sim: SimState, changed: np.ndarray,
+                               previous: Allocation | None) -> None:
+        """Re-brief every human whose work the reallocation changes (MODEL.md section 3a).
+
+        Only tasks not yet captured may change, so every navigation leg or classification that
+        moves between humans had not started. A human re-briefed is busy for ``rebrief_s`` from
+        the end of the item in hand (or now), and loses ``sa_drop`` of SA as on a switch.
+        """
+        s = self.settings
+        if previous is None or s.rebrief_s <= 0:
+            return
+        touched = retasked_humans(previous, sim.allocation, changed, sim.sizes.humans)
+        b, hh = np.nonzero(touched)
+        if b.size == 0:
+            return
+        h = sim.group("humans")
+        start = np.maximum(h.busy_until[b, hh], sim.now)
+        sa = np.minimum(1.0, h.sa[b, hh] + s.sa_recovery_per_min * (start - h.sa_time[b, hh])
+                        / 60.0)
+        self._book(sim, b, hh, start, start + s.rebrief_s)
+        h.sa[b, hh] = np.maximum(0.0, sa - s.sa_drop)
+        h.sa_time[b, hh] = start
+        h.rebriefs[b, hh] += 1
+        if sim.trace is not None:
+            for i in range(b.size):
+                sim.log("rebrief", float(start[i]), int(b[i]), int(hh[i]),
+                        float(start[i] + s.rebrief_s))
 
     def _utilisation_at(self, sim: SimState, b: np.ndarray, hh: np.ndarray,
                         start: np.ndarray) -> np.ndarray:
@@ -204,6 +247,22 @@ class HumanModel:
         m["fatigued_share"] = h.cls_fatigued.sum(axis=1) / n
         m["underloaded_share"] = h.cls_u_low.sum(axis=1) / n
         m["overloaded_share"] = h.cls_u_high.sum(axis=1) / n
+        m["rebriefs"] = h.rebriefs.sum(axis=1)
+
+
+def retasked_humans(previous: Allocation, current: Allocation, changed: np.ndarray,
+                    n_humans: int) -> np.ndarray:
+    """(B, H) bool: humans who gain or lose a navigation or classification role on a changed
+    task (a robot moved between robots with the same navigator and classifier touches no one)."""
+    B = changed.shape[0]
+    touched = np.zeros((B, n_humans + 1), dtype=bool)     # column 0: auto / onboard
+    rows = np.arange(B)[:, None]
+    for old, new in ((previous.navigator, current.navigator),
+                     (previous.classifier, current.classifier)):
+        moved = changed & (old != new)
+        touched[np.broadcast_to(rows, moved.shape)[moved], old[moved] + 1] = True
+        touched[np.broadcast_to(rows, moved.shape)[moved], new[moved] + 1] = True
+    return touched[:, 1:]
 
 
 @hookimpl

@@ -8,6 +8,11 @@ Group ``robots``: ``type``, ``speed``, ``pos`` (B, R, 2), ``failed``, ``fail_tim
 
 A robot is idle, waiting for its navigator, or on a leg (travel then the capture). A leg's
 times are exact; the kernel tick only decides when the next event is looked at.
+
+A robot out on its route (on a leg, or waiting for its navigator to start one) whose next target
+a reallocation changes holds for ``replan_s`` before it moves on (MODEL.md section 3a): after the
+capture in hand (``replan_hold``), or at once when the leg it waited for is withdrawn.
+``replans`` counts them.
 """
 
 from __future__ import annotations
@@ -18,7 +23,7 @@ import numpy as np
 
 from ata import hookimpl
 from ata.core.settings import param
-from ata.core.state import Observation, SimState
+from ata.core.state import Allocation, Observation, SimState
 from ata.plugins import tables
 
 ROBOT_INHERENT = ("uav", "ugv", "speed")
@@ -36,6 +41,9 @@ class RobotModel:
         capture_s: float = param(3.0, min=0.0, help="time to capture the image at a POI, s")
         skill_speed: list[float] = param([2.0 / 3.0, 1.0, 1.5], min=0.0,
                                          help="speed factor under a low/medium/high navigator")
+        replan_s: float = param(10.0, min=0.0, max=3600.0,
+                                help="hold of a robot whose next target a reallocation changes "
+                                     "while it is out on its route, s (0: no cost)")
 
     def __init__(self, settings: "RobotModel.Settings", mission: object):
         self.settings = settings
@@ -71,6 +79,8 @@ class RobotModel:
         r.moved_s = np.zeros((B, R))
         r.moved_at_epoch = np.zeros((B, R))
         r.idleness = np.ones((B, R))
+        r.replan_hold = np.zeros((B, R))
+        r.replans = np.zeros((B, R))
 
     @hookimpl
     def ata_inherent(self, sim: SimState, inherent: Observation) -> None:
@@ -114,8 +124,14 @@ class RobotModel:
         obs.extras["reallocatable"] = ~committed if realloc is None else realloc & ~committed
 
     @hookimpl
-    def ata_allocation_changed(self, sim: SimState, changed: np.ndarray) -> None:
+    def ata_allocation_changed(self, sim: SimState, changed: np.ndarray,
+                               previous: Allocation | None) -> None:
         r = sim.group("robots")
+        charge = previous is not None and self.settings.replan_s > 0
+        out = ~r.failed & (r.target >= 0)          # on a leg, or waiting for its navigator
+        on_leg = out & np.isfinite(r.leg_start)
+        if charge and out.any():
+            before = np.where(on_leg, self._next_after_leg(sim, on_leg, previous), r.target)
         waiting = np.isfinite(r.nav_ready) | ((r.target >= 0) & ~np.isfinite(r.leg_start))
         cancel = waiting & np.take_along_axis(changed, np.maximum(r.target, 0), axis=1) \
             & (r.target >= 0)
@@ -124,6 +140,34 @@ class RobotModel:
         r.nav_human[cancel] = -1
         r.free_at = np.where(cancel, np.maximum(r.free_at, sim.now), r.free_at)
         r.parked &= ~changed.any(axis=1)[:, None]
+        if not (charge and out.any()):
+            return
+        after = np.where(on_leg, self._next_after_leg(sim, on_leg, sim.allocation), r.target)
+        if cancel.any():
+            after = np.where(cancel, np.asarray(sim.slot_call["routing"](sim=sim, free=cancel)),
+                             after)
+        replan = out & (before != after)
+        hold = self.settings.replan_s
+        r.replan_hold[replan & on_leg] += hold
+        r.free_at = np.where(replan & ~on_leg, r.free_at + hold, r.free_at)
+        r.replans += replan
+        for b, rr in zip(*np.nonzero(replan)) if sim.trace is not None else ():
+            sim.log("replan", float(sim.now), int(b), int(rr), int(before[b, rr]),
+                    int(after[b, rr]))
+
+    def _next_after_leg(self, sim: SimState, on_leg: np.ndarray, alloc: Allocation) -> np.ndarray:
+        """The routing component's choice for each robot on a leg once it has captured, under
+        `alloc`: asked as if the robot stood at its target already (its target is excluded, as
+        every POI a robot heads for is)."""
+        r, t = sim.group("robots"), sim.group("tasks")
+        saved_pos, saved_alloc = r.pos, sim.allocation
+        dest = np.take_along_axis(t.pos, np.maximum(r.target, 0)[..., None], axis=1)
+        r.pos = np.where(on_leg[..., None], dest, r.pos)
+        sim.allocation = alloc
+        try:
+            return np.asarray(sim.slot_call["routing"](sim=sim, free=on_leg)).copy()
+        finally:
+            r.pos, sim.allocation = saved_pos, saved_alloc
 
     @hookimpl
     def ata_advance(self, sim: SimState, t0: float, t1: float) -> None:
@@ -192,7 +236,8 @@ class RobotModel:
         r.leg_start[b, rr] = np.inf
         r.leg_end[b, rr] = np.inf
         r.leg_nav[b, rr] = -1
-        r.free_at[b, rr] = te
+        r.free_at[b, rr] = te + r.replan_hold[b, rr]
+        r.replan_hold[b, rr] = 0.0
         for i in range(b.size if sim.trace is not None else 0):
             sim.log("capture", float(te[i]), int(b[i]), int(rr[i]), int(p[i]), int(q[i]))
 
@@ -235,6 +280,7 @@ class RobotModel:
     def ata_episode_end(self, sim: SimState) -> None:
         r = sim.group("robots")
         sim.record.metrics["robot_failures"] = r.failed.sum(axis=1).astype(float)
+        sim.record.metrics["replans"] = r.replans.sum(axis=1)
 
 
 @hookimpl

@@ -9,6 +9,14 @@ that image quality and difficulty. Human time has a price in points per second, 
 where they add the most; classifications that could not finish by the horizon are worth 0.
 Everything it reads is observable: I, and the observed S (fatigue is predicted from the
 noise-free working time).
+
+Reallocation prices the re-tasking cost of MODEL.md section 3a (the human and robot models'
+``rebrief_s`` and ``replan_s``, public parameters of the mission). Where it is not zero, greedy
+weighs three candidates by their projected value in expectation (``ata.plugins.policies.plan``)
+net of that cost and of the human time they book: keeping the allocation in force, repairing it
+(re-planning only the POIs of robots seen down and the POIs whose kind or difficulty changed
+since they were planned, after the work the rest keeps), and the full re-plan; it keeps the
+allocation unless a change gains more than it costs.
 """
 
 from __future__ import annotations
@@ -21,6 +29,8 @@ from ata import hookimpl
 from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext
 from ata.plugins import tables
+from ata.plugins.humans import retasked_humans
+from ata.plugins.policies.plan import PlanStart, plan_start, project
 
 
 class GreedyPolicy:
@@ -35,17 +45,115 @@ class GreedyPolicy:
         human_navigators: bool = param(True, help="consider highly skilled human navigators")
         capture_s: float = param(3.0, min=0.0, help="capture time assumed by the plan")
         fatigue_floor: float = param(0.4, min=0.0, max=1.0, help="fatigue floor assumed")
+        retask_cost: bool = param(True, help="weigh re-tasking costs when reallocating (keep, "
+                                  "repair or re-plan); false: always re-plan in full")
 
     def __init__(self, settings: "GreedyPolicy.Settings", mission: object):
         self.s = settings
+        self.planned_attrs: np.ndarray | None = None   # (B, P, 2) kind, difficulty planned with
+        self.choices = np.zeros(3, dtype=np.int64)      # keep / repair / re-plan, for reports
 
     @hookimpl
     def ata_initial_allocation(self, ctx: DecisionContext) -> Allocation:
+        self.planned_attrs = _attrs(ctx)
         return plan(ctx, self.s, np.ones(ctx.reallocatable.shape, dtype=bool))
 
     @hookimpl
     def ata_reallocate(self, ctx: DecisionContext, active: np.ndarray) -> Allocation:
-        return plan(ctx, self.s, ctx.reallocatable & active[:, None])
+        open_ = ctx.reallocatable & active[:, None]
+        full = plan(ctx, self.s, open_)
+        cost = RetaskCost.of(ctx)
+        if not self.s.retask_cost or cost.free or self.planned_attrs is None:
+            return full
+        return self._cheapest(ctx, open_, full, cost)
+
+    def _cheapest(self, ctx: DecisionContext, open_: np.ndarray, full: Allocation,
+                  cost: "RetaskCost") -> Allocation:
+        """Keep, repair or re-plan in full, whichever is worth most net of its cost."""
+        prev, S = ctx.previous, ctx.observed
+        attrs = _attrs(ctx)
+        working = S["robots"].col("working") > 0.5
+        lost = ~np.take_along_axis(working, prev.robot, axis=1)
+        affected = open_ & (lost | (attrs != self.planned_attrs).any(axis=-1))
+        start = plan_start(ctx, self.s.capture_s)
+        repair = prev.copy()
+        rows = np.nonzero(affected.any(axis=1))[0]
+        if rows.size:
+            kept = project(start, prev, open_ & ~affected, capture_s=self.s.capture_s,
+                           fatigue_floor=self.s.fatigue_floor)
+            after = dict(robot_free=kept.robot_free, robot_xy=kept.robot_xy,
+                         human_free=kept.human_free)
+            sub = _plan(ctx.take(rows), self.s, affected[rows],
+                        after={k: v[rows] for k, v in after.items()})
+            for field in ("robot", "navigator", "classifier"):
+                getattr(repair, field)[rows] = np.where(affected[rows], getattr(sub, field),
+                                                        getattr(prev, field)[rows])
+        candidates = (prev, repair, full)
+        worth = np.stack([self._worth(ctx, start, c, open_, cost) for c in candidates], axis=1)
+        best = np.zeros(worth.shape[0], dtype=np.int64)
+        for i in (1, 2):        # a change must gain more than it costs: keep wins ties
+            best = np.where(worth[:, i] > worth[np.arange(best.size), best] + 1e-9, i, best)
+        self.choices += np.bincount(best, minlength=3)
+        out = prev.copy()
+        for i, cand in enumerate(candidates):
+            rows_i = best == i
+            for field in ("robot", "navigator", "classifier"):
+                getattr(out, field)[rows_i] = getattr(cand, field)[rows_i]
+        replanned = np.where((best == 2)[:, None], open_, np.where((best == 1)[:, None],
+                                                                  affected, False))
+        self.planned_attrs = np.where(replanned[..., None], attrs, self.planned_attrs)
+        return out
+
+    def _worth(self, ctx: DecisionContext, start: PlanStart, cand: Allocation,
+               open_: np.ndarray, cost: "RetaskCost") -> np.ndarray:
+        """Projected points of the open POIs, less the price of the human time booked and of
+        the re-tasking the change from the allocation in force costs."""
+        prev = ctx.previous
+        changed = open_ & ((cand.robot != prev.robot) | (cand.navigator != prev.navigator)
+                           | (cand.classifier != prev.classifier))
+        humans = retasked_humans(prev, cand, changed, ctx.sizes.humans)
+        robots = np.zeros(start.robot_free.shape, dtype=bool)
+        cb, cp = np.nonzero(changed)
+        robots[cb, prev.robot[cb, cp]] = True
+        robots[cb, cand.robot[cb, cp]] = True
+        proj = project(start, cand, open_, capture_s=self.s.capture_s,
+                       fatigue_floor=self.s.fatigue_floor,
+                       human_delay=humans * cost.rebrief_s, robot_delay=robots * cost.replan_s)
+        human_s = proj.human_busy_s + humans.sum(axis=1) * cost.human_seconds
+        return proj.value - self.s.human_time_cost * human_s
+
+
+@dataclass(frozen=True)
+class RetaskCost:
+    """The re-tasking cost of MODEL.md section 3a, from the mission's human and robot models
+    (0 where a model has no such parameter)."""
+
+    rebrief_s: float = 0.0
+    replan_s: float = 0.0
+    human_seconds: float = 0.0    # human time a re-brief costs: itself, and the SA it loses
+
+    @property
+    def free(self) -> bool:
+        return self.rebrief_s <= 0 and self.replan_s <= 0
+
+    @classmethod
+    def of(cls, ctx: DecisionContext) -> "RetaskCost":
+        mission = ctx.params.get("mission")
+        if mission is None:
+            return cls()
+        human = mission.component_settings.get(mission.slots.human_model)
+        robot = mission.component_settings.get(mission.slots.robot_model)
+        rebrief = float(getattr(human, "rebrief_s", 0.0))
+        sa_cost = float(getattr(human, "sa_drop", 0.0)) * float(getattr(human, "switch_cost_s",
+                                                                        0.0))
+        return cls(rebrief_s=rebrief, replan_s=float(getattr(robot, "replan_s", 0.0)),
+                   human_seconds=rebrief + (sa_cost if rebrief > 0 else 0.0))
+
+
+def _attrs(ctx: DecisionContext) -> np.ndarray:
+    """(B, P, 2) the POIs' kind and difficulty as currently seen."""
+    src = ctx.observed["tasks"] if ctx.observed is not None else ctx.inherent["tasks"]
+    return np.stack([src.col("kind"), src.col("difficulty")], axis=-1)
 
 
 def plan(ctx: DecisionContext, s: "GreedyPolicy.Settings", open_: np.ndarray) -> Allocation:
@@ -62,7 +170,10 @@ def plan(ctx: DecisionContext, s: "GreedyPolicy.Settings", open_: np.ndarray) ->
     return _plan(ctx, s, open_)
 
 
-def _plan(ctx: DecisionContext, s: "GreedyPolicy.Settings", open_: np.ndarray) -> Allocation:
+def _plan(ctx: DecisionContext, s: "GreedyPolicy.Settings", open_: np.ndarray,
+          after: dict[str, np.ndarray] | None = None) -> Allocation:
+    """Greedy list scheduling of the `open_` tasks. `after` (robot_free, robot_xy in metres,
+    human_free) replaces the starting state: the plan then follows work already planned."""
     I, S = ctx.inherent, ctx.observed
     B, P = open_.shape
     H, R = ctx.sizes.humans, ctx.sizes.robots
@@ -128,6 +239,13 @@ def _plan(ctx: DecisionContext, s: "GreedyPolicy.Settings", open_: np.ndarray) -
     at_task = np.full((B, R), -1, dtype=np.int64)
     if S is not None and committed.any():
         at_task[cb, cr] = target[cb, cr]
+    if after is not None:
+        robot_free = after["robot_free"].copy()
+        human_free = after["human_free"].copy()
+        rx, ry = after["robot_xy"][..., 0], after["robot_xy"][..., 1]
+        start_x, start_y = tx[:, None, :] - rx[:, :, None], ty[:, None, :] - ry[:, :, None]
+        start_dist = np.sqrt(start_x * start_x + start_y * start_y)
+        at_task[:] = -1
 
     # per (robot type, navigator class auto / high skill): each task's (quality, difficulty)
     # index into the 12 flattened combinations, offset to its scenario's row, and the

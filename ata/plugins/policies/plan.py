@@ -1,0 +1,205 @@
+"""Plans in expectation: where a plan starts from at a decision epoch, and what a fixed
+allocation is expected to earn from there (a public helper for allocation policies).
+
+Everything here reads what a policy may read, the inherent information I and the observed state
+S, and the model's tables; nothing reads the scenario's random streams or its true state. The
+projection is the model *in expectation on the observed estimates*: robots visit their POIs in
+nearest-neighbour order at their nominal speeds, humans take work first come first served,
+fatigue follows the working hours (which S shows without noise), workload is taken as 1, and a
+classification that cannot end by the horizon earns nothing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ata.core.state import Allocation, DecisionContext
+from ata.plugins import tables
+
+
+@dataclass
+class PlanStart:
+    """The state a plan starts from, per scenario (B) and member or POI. Times in seconds,
+    positions in metres; ``robot_free`` is inf for a robot observed down."""
+
+    now: float
+    horizon: float
+    task_xy: np.ndarray        # (B, P, 2)
+    kind: np.ndarray           # (B, P) current estimate
+    diff: np.ndarray           # (B, P) current estimate
+    points: np.ndarray         # (B, P)
+    open: np.ndarray           # (B, P) not captured and no leg under way to it
+    eta: np.ndarray            # (B, H)
+    lam: np.ndarray            # (B, H)
+    skill: np.ndarray          # (B, H) int
+    hours: np.ndarray          # (B, H) working hours now
+    human_free: np.ndarray     # (B, H)
+    robot_type: np.ndarray     # (B, R) int
+    speed: np.ndarray          # (B, R)
+    robot_free: np.ndarray     # (B, R)
+    robot_xy: np.ndarray       # (B, R, 2) where each robot will be free
+    robot_at: np.ndarray       # (B, R) the POI a committed leg ends at (-1: none)
+
+    @property
+    def batch(self) -> int:
+        return self.points.shape[0]
+
+
+def plan_start(ctx: DecisionContext, capture_s: float = 3.0) -> PlanStart:
+    """The plan's starting state at this epoch, from I and the observed S.
+
+    A robot on a leg is free at the end of it (remaining distance at its nominal speed plus the
+    capture), at its target; a captured image waiting for a human classifier books that human
+    for t_bar at Medium quality (the image's quality is not observed).
+    """
+    I, S = ctx.inherent, ctx.observed
+    B, P = ctx.reallocatable.shape
+    H, R = ctx.sizes.humans, ctx.sizes.robots
+    now = float(ctx.time)
+    area = I.extras["area_m"][:, None]
+    h, r, t = I["humans"], I["robots"], I["tasks"]
+    task_xy = np.stack([t.col("x"), t.col("y")], axis=-1) * area[..., None]
+    src = S["tasks"] if S is not None else t
+    kind = src.col("kind").astype(np.int64)
+    diff = src.col("difficulty").astype(np.int64)
+    robot_type = np.where(r.col("uav") > 0.5, tables.UAV, tables.UGV)
+    speed = r.col("speed").astype(float)
+    robot_free = np.full((B, R), now)
+    robot_at = np.full((B, R), -1, dtype=np.int64)
+    human_free = np.full((B, H), now)
+    if S is None:
+        hours = np.zeros((B, H))
+        robot_xy = np.full((B, R, 2), 0.5) * area[..., None]
+        open_ = np.ones((B, P), dtype=bool)
+    else:
+        hours = S["humans"].col("working_time").astype(float)
+        robot_xy = np.stack([S["robots"].col("x"), S["robots"].col("y")], -1) * area[..., None]
+        working = S["robots"].col("working") > 0.5
+        robot_free[~working] = np.inf
+        target = S["robots"].col("target").astype(np.int64)
+        committed = working & (target >= 0) & ~np.take_along_axis(
+            ctx.reallocatable, np.maximum(target, 0), axis=1)
+        if committed.any():
+            cb, cr = np.nonzero(committed)
+            dest = task_xy[cb, target[cb, cr]]
+            dist = np.linalg.norm(dest - robot_xy[cb, cr], axis=-1)
+            robot_free[cb, cr] = now + dist / np.maximum(speed[cb, cr], 1e-9) + capture_s
+            robot_xy[cb, cr] = dest
+            robot_at[cb, cr] = target[cb, cr]
+        open_ = (S["tasks"].col("unvisited") > 0.5) & ctx.reallocatable
+        if ctx.previous is not None:
+            waiting = (S["tasks"].col("captured") > 0.5) & (ctx.previous.classifier >= 0)
+            wb, wp = np.nonzero(waiting)
+            np.add.at(human_free, (wb, ctx.previous.classifier[wb, wp]),
+                      tables.T_BAR[1, diff[wb, wp]])
+    return PlanStart(now=now, horizon=float(ctx.clock.horizon_s), task_xy=task_xy, kind=kind,
+                     diff=diff, points=tables.POINTS[diff], open=open_,
+                     eta=h.col("cognitive").astype(float), lam=h.col("expertise").astype(float),
+                     skill=h.col("skill").astype(np.int64), hours=hours, human_free=human_free,
+                     robot_type=robot_type, speed=speed, robot_free=robot_free,
+                     robot_xy=robot_xy, robot_at=robot_at)
+
+
+@dataclass
+class Projection:
+    """What a fixed allocation is expected to do from a PlanStart."""
+
+    value: np.ndarray          # (B,) expected points of the open POIs
+    human_busy_s: np.ndarray   # (B,) human seconds booked by the plan (legs, classifications)
+    expected: np.ndarray       # (B, P) expected points per open POI (0 if not done in time)
+    arrival: np.ndarray        # (B, P) capture time (inf if never)
+    finish: np.ndarray         # (B, P) classification end (inf if never)
+    robot_free: np.ndarray     # (B, R) when each robot's route ends
+    robot_xy: np.ndarray       # (B, R, 2) where it ends
+    human_free: np.ndarray     # (B, H) when each human's work ends
+
+
+def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None, *,
+            capture_s: float = 3.0, fatigue_floor: float = 0.4,
+            human_delay: np.ndarray | None = None,
+            robot_delay: np.ndarray | None = None) -> Projection:
+    """Expected outcome of `alloc` for the POIs in `tasks` (default: the open ones).
+
+    The robot free first (among those with POIs left) goes to its nearest POI left; its
+    navigator, if any, is busy for the leg from when both are free; its classifier, if human,
+    from the capture or when free, whichever is later. ``human_delay`` / ``robot_delay`` (B, H)
+    / (B, R) seconds hold members before their first item (a re-brief, a re-plan).
+    """
+    B, P = start.points.shape
+    H = start.eta.shape[1]
+    left = (start.open if tasks is None else tasks & start.open).copy()
+    robot_free = start.robot_free.copy()
+    if robot_delay is not None:
+        robot_free = robot_free + robot_delay
+    robot_xy = start.robot_xy.copy()
+    human_free = start.human_free.copy()
+    if human_delay is not None:
+        human_free = human_free + human_delay
+    busy = np.zeros((B, H))
+    expected = np.zeros((B, P))
+    arrival = np.full((B, P), np.inf)
+    finish = np.full((B, P), np.inf)
+    owner = alloc.robot
+    left &= np.isfinite(np.take_along_axis(robot_free, owner, axis=1))
+    b_all = np.arange(B)
+    R = robot_free.shape[1]
+    for _ in range(P):
+        # robots with POIs left: (B, R)
+        has = np.zeros((B, R), dtype=bool)
+        lb, lp = np.nonzero(left)
+        has[lb, owner[lb, lp]] = True
+        if not has.any():
+            break
+        free = np.where(has, robot_free, np.inf)
+        rs = free.argmin(axis=1)
+        act = has.any(axis=1)
+        gap = start.task_xy - robot_xy[b_all, rs][:, None, :]
+        dist = np.hypot(gap[..., 0], gap[..., 1])
+        mine = left & (owner == rs[:, None])
+        dist = np.where(mine, dist, np.inf)
+        p = dist.argmin(axis=1)
+        b, rr, p, d = b_all[act], rs[act], p[act], dist[b_all, p][act]
+        nav = alloc.navigator[b, p]
+        navigated = nav >= 0
+        nav_h = np.maximum(nav, 0)
+        nav_class = np.where(navigated, start.skill[b, nav_h], 1)
+        v = start.speed[b, rr] * np.where(navigated, tables.SKILL_SPEED[nav_class], 1.0)
+        leg = d / np.maximum(v, 1e-9) + capture_s
+        depart = np.where(navigated, np.maximum(robot_free[b, rr], human_free[b, nav_h]),
+                          robot_free[b, rr])
+        arr = depart + leg
+        in_time = arr <= start.horizon
+        # a navigator is booked for the leg only if it can start it in time
+        nb = navigated & (depart < start.horizon)
+        human_free[b[nb], nav_h[nb]] = arr[nb]
+        busy[b[nb], nav_h[nb]] += leg[nb]
+        q = tables.QUALITY[start.robot_type[b, rr], start.kind[b, p], nav_class]
+        dd = start.diff[b, p]
+        cls = alloc.classifier[b, p]
+        by_human = (cls >= 0) & in_time
+        ch = np.maximum(cls, 0)
+        begin = np.maximum(arr, human_free[b, ch])
+        t_bar = tables.T_BAR[q, dd]
+        done = np.where(by_human, begin + t_bar, arr)
+        # fatigue at the start: working hours now, plus the human busy until then
+        f_f = tables.fatigue(start.hours[b, ch] + np.maximum(human_free[b, ch] - start.now, 0)
+                             / 3600.0, fatigue_floor)
+        p_ok = np.where(cls >= 0, 0.5 + start.eta[b, ch] * f_f * start.lam[b, ch]
+                        * tables.F_D[q, dd], tables.P_RC[q, dd])
+        counted = in_time & (done <= start.horizon)
+        expected[b, p] = np.where(counted, tables.expected_points(start.points[b, p], p_ok), 0.0)
+        arrival[b, p] = np.where(in_time, arr, np.inf)
+        finish[b, p] = np.where(counted, done, np.inf)
+        hb = by_human & (begin < start.horizon)
+        human_free[b[hb], ch[hb]] = done[hb]
+        busy[b[hb], ch[hb]] += t_bar[hb]
+        robot_free[b, rr] = np.where(in_time, arr, np.inf)
+        robot_xy[b, rr] = start.task_xy[b, p]
+        left[b, p] = False
+        # a robot whose next leg overruns the horizon is done
+        left[b[~in_time]] &= owner[b[~in_time]] != rr[~in_time, None]
+    return Projection(value=expected.sum(axis=1), human_busy_s=busy.sum(axis=1),
+                      expected=expected, arrival=arrival, finish=finish,
+                      robot_free=robot_free, robot_xy=robot_xy, human_free=human_free)
