@@ -148,64 +148,61 @@ def render_summary(session, result) -> None:
 @app.command()
 @user_errors
 def train(mission: Optional[str] = typer.Argument(
-              None, help="Training mission (TOML). Default: the built-in ATA-HRL training "
-                         "mission, setting (a), medium uncertainty."),
+              None, help="Training mission (TOML) naming a trainer in [components]. Default: "
+                         "the built-in training mission of the --plugins given."),
           set_: Optional[List[str]] = SetOption,
           plugins: Optional[str] = typer.Option(
               None, "--plugins", metavar="NAME[,NAME]",
-              help="Learned parts to train: ctr (pi_C and pi_TR), aux (state reconstruction). "
-                   "Default: ctr,aux. Leaving one out trains the ablation. trp: the TR-POMDP "
-                   "agents (with ita: AtRL-TR); ita alone: the attention ITA alone."),
+              help="Without a mission file, pick the built-in training mission of these "
+                   "optional plugins: ctr,aux (the default) the full ATA-HRL; ctr w/o.AUX; ita "
+                   "the ITA alone; trp TR-POMDP; ita,trp AtRL-TR. w/o.C: add --set "
+                   "components.condition=always."),
           out: Optional[Path] = typer.Option(None, "--out", "-o", help="Run folder."),
           resume: Optional[Path] = typer.Option(None, "--resume",
-                                                help="Resume the run in this folder.")) -> None:
-    """Train ATA-HRL (or an ablation): reconstruction, imitation warm start, REINFORCE; or the
-    TR-POMDP agents (double DQN), after the attention ITA for AtRL-TR."""
+                                                help="Resume the run in this folder."),
+          quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar.")) -> None:
+    """Train the learned components of a mission with the trainer it names (ata_hrl: ATA-HRL
+    and its ablations; dqn: the TR-POMDP agents, also after the attention ITA for AtRL-TR)."""
     from ata.core import runner
-    from ata.learn import train as training
+    from ata.training import TrainRun
 
     if resume is not None:
-        if mission is not None or set_:
+        if mission is not None or set_ or plugins:
             err_console.print("[yellow]note:[/] --resume uses the run folder's resolved "
-                              "mission; the MISSION and --set given are ignored")
+                              "mission; the MISSION, --plugins and --set given are ignored")
         source = resume / "mission.resolved.toml"
         session = runner.load_session(str(source))
         run_dir = resume
     else:
         names = _split(plugins) if plugins is not None else ["ctr", "aux"]
-        overrides = training.method_overrides(names) + list(set_ or [])
-        default = training.TRP_MISSION if "trp" in names else training.TRAIN_MISSION
-        session = runner.load_session(mission or str(default), overrides, names)
-        run_dir = out or runner.default_out_dir(session.mission).with_name(
-            "train-" + runner.default_out_dir(session.mission).name)
+        source = mission or str(runner.training_mission_for(names))
+        session = runner.load_session(source, list(set_ or []), names if mission else None)
+        stamp = runner.default_out_dir(session.mission)
+        run_dir = out or stamp.with_name("train-" + stamp.name)
+    trainer = runner.build_trainer(session)
     m = session.mission
-    total = training.total_steps(m)
     columns = [TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
                TextColumn("{task.fields[status]}"), TimeElapsedColumn(), TimeRemainingColumn()]
-    with Progress(*columns, console=Console(stderr=True)) as progress:
-        task = progress.add_task(f"train {m.settings.name}", total=total, status="")
+    with Progress(*columns, console=Console(stderr=True), disable=quiet) as progress:
+        task = progress.add_task(f"train {m.settings.name}", total=trainer.total_steps(),
+                                 status="")
 
         def on_row(row: dict) -> None:
             parts = [f"{row['phase']} {row['step']}"]
-            if row.get("samples_per_s"):
-                parts.append(f"{row['samples_per_s']} samples/s")
-            if row.get("mean_score"):
-                parts.append(f"reward {row['mean_score']}")
-            if row.get("epsilon"):
-                parts.append(f"eps {row['epsilon']}")
-            if row.get("eval_score"):
-                parts.append(f"eval {row['eval_score']}")
-            if row.get("aux_fatigue_mse"):
-                parts.append(f"fatigue mse {row['aux_fatigue_mse']}")
-            progress.update(task, advance=1 if str(row["step"]) != "0" else 0,
-                            status=" | ".join(parts))
+            for key, label in (("episodes_per_s", "ep/s"), ("mean_score", "score"),
+                               ("epsilon", "eps"), ("eval_score", "held-out"),
+                               ("aux_fatigue_mse", "fatigue mse")):
+                if row.get(key):
+                    parts.append(f"{label} {row[key]}")
+            progress.update(task, completed=trainer.done_steps(), status=" | ".join(parts))
 
-        trainer = training.Trainer(session, run_dir, resume=resume is not None, on_row=on_row)
-        progress.update(task, completed=sum(trainer.counters[k] for k in ("aux", "imitation",
-                                                                          "rl", "dqn")))
-        report = trainer.run()
+        run = TrainRun(run_dir, m.to_toml(), trainer.log_fields, resume=resume is not None,
+                       on_row=on_row)
+        progress.update(task, completed=trainer.done_steps())
+        report = trainer.run(run, resume=resume is not None)
+    best = report.get("best_eval", float("nan"))
     console.print(f"trained in {report['wall_s']:.0f} s of training time; best held-out "
-                  f"score {report['best_eval']:.1f}")
+                  f"score {best:.1f}")
     for key, value in (report.get("aux") or {}).items():
         console.print(f"  {key}: {value:.5f}")
     console.print(f"run folder: {run_dir} (checkpoint.pt, best.pt, log.csv)")

@@ -116,6 +116,15 @@ def ata_allocation_changed(sim: "SimState", changed: np.ndarray,
     """
 
 
+@hookspec
+def ata_trained_on() -> list[tuple[int, int, int]]:
+    """The scenarios the component's trained weights saw: (root seed, first id, end id) ranges.
+
+    A learned component answers from its checkpoint (``ata.training``); `ata eval` refuses to
+    evaluate on any of them. Components with nothing trained need not implement it.
+    """
+
+
 # --- tick: every tick_s seconds -----------------------------------------------------------------
 
 @hookspec(firstresult=True)

@@ -8,9 +8,9 @@ scenario's numbers depend on (seed, scenario id) alone, so the rows do not depen
 executor, the worker count or the chunk size.
 
 Held-out scenarios: every evaluation scenario id is at least EVAL_FIRST_SCENARIO = 2**40, and
-no training run uses an id that high (`ata train` draws ids below 40 million, with root seeds
-[train].seed and [train].seed + 1_000_003), so no (seed, scenario id) pair of an evaluation is
-a training pair, whatever the seeds. `check_held_out` checks this for each mission's [train].
+trainers draw ids below it (``ata.training.TRAINING_ID_LIMIT``). Beyond that, every learned
+component reports the (seed, id) ranges its weights were trained on (the ``ata_trained_on``
+hook, from its checkpoint), and `check_held_out` refuses a job whose scenarios meet any of them.
 """
 
 from __future__ import annotations
@@ -42,13 +42,6 @@ from ata.core.runner import Session, load_session, run_batch
 
 EVAL_FIRST_SCENARIO = 2 ** 40
 """The first scenario id of every evaluation: far above any id training uses."""
-TRAIN_ID_LIMIT = 40_000_000
-"""Training draws scenario ids below this (a range of 10 million per phase; ata/learn/train.py)."""
-TRAIN_LAST_PHASE_BASE = 30_000_000
-"""The first id of training's last phase; a phase of N steps of batch_size uses N * batch_size."""
-TRAIN_EVAL_SEED_OFFSET = 1_000_003
-"""Training's held-out checks use root seed [train].seed + this (ata.learn.train.EVAL_SEED_OFFSET,
-repeated here so that evaluating needs no torch)."""
 DEFAULT_SCENARIOS = 500
 """Scenarios per (method, setting, level) when neither the suite nor the command says."""
 DEFAULT_CHUNK = 50
@@ -229,30 +222,22 @@ class Job:
         return f"{self.method}__{self.setting}__{self.level}"
 
 
-def training_ranges(train) -> list[tuple[int, int, int]]:
-    """(root seed, first id, end id) of every scenario range `ata train` may use with this
-    [train] table (conservative: the whole per-phase layout)."""
-    steps = max(int(getattr(train, k, 0) or 0) for k in
-                ("aux_batches", "imitation_steps", "rl_steps", "dqn_steps"))
-    end = max(TRAIN_ID_LIMIT, TRAIN_LAST_PHASE_BASE + (steps + 1) * train.batch_size)
-    return [(train.seed, 0, end),
-            (train.seed + TRAIN_EVAL_SEED_OFFSET, 0, max(end, train.eval_scenarios))]
-
-
 def eval_range(mission: Mission) -> tuple[int, int, int]:
     s = mission.settings
     return s.seed, s.first_scenario, s.first_scenario + s.scenarios
 
 
-def check_held_out(mission: Mission) -> None:
-    """Raise a MissionError when a (seed, scenario id) pair of the mission's scenarios could be
-    one that training with the mission's [train] table uses."""
+def check_held_out(mission: Mission, sim: Simulation) -> None:
+    """Raise a MissionError when a (seed, scenario id) pair of the mission's scenarios is one
+    that the weights of a component of `sim` (built from the mission) were trained on."""
     seed, lo, hi = eval_range(mission)
-    for t_seed, t_lo, t_hi in training_ranges(mission.train):
-        if seed == t_seed and lo < t_hi and t_lo < hi:
-            raise MissionError("[mission]", "first_scenario", f"scenarios {lo}..{hi - 1} of "
-                               f"seed {seed} overlap training's ids {t_lo}..{t_hi - 1} of that "
-                               "seed; evaluation scenarios must be held out")
+    for ranges in sim.pm.hook.ata_trained_on():
+        for t_seed, t_lo, t_hi in ranges or []:
+            if seed == t_seed and lo < t_hi and t_lo < hi:
+                raise MissionError("[mission]", "first_scenario", f"scenarios {lo}..{hi - 1} "
+                                   f"of seed {seed} overlap the ids {t_lo}..{t_hi - 1} of that "
+                                   "seed that a component's weights were trained on; "
+                                   "evaluation scenarios must be held out")
 
 
 def _pick(values: list[str] | None, wanted: list[str] | None) -> list[str | None]:
@@ -357,8 +342,9 @@ def _validate_job(job: Job) -> None:
     its scenarios are held out."""
     m = job.mission
     try:
-        check_held_out(m)
-        Simulation(m.replace(scenarios=1), job.session.registry, [m.settings.first_scenario])
+        sim = Simulation(m.replace(scenarios=1), job.session.registry,
+                         [m.settings.first_scenario])
+        check_held_out(m, sim)
     except MissionError as exc:
         raise _context(exc, job.source, job.method, job.setting, job.level) from None
 

@@ -25,9 +25,12 @@ SLOT_HOOKS = {"routing": "ata_next_targets", "initial": "ata_initial_allocation"
 
 
 def build_component(registry: Register, mission: Mission, kind: str, name: str) -> Any:
-    """Create one component instance from its factory and its resolved settings."""
+    """Create one component instance from its factory and its resolved settings (its defaults
+    when the mission does not choose it, as for a trainer's teacher)."""
     info = registry.get(kind, name, "[components]")
     settings = mission.component_settings.get(name)
+    if settings is None and getattr(info.factory, "Settings", None) is not None:
+        settings = info.factory.Settings()
     component = info.factory(settings, mission)
     try:
         component.component_name = name

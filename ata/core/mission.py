@@ -71,68 +71,17 @@ class ComponentSlots:
     initial: str = param("greedy", help="initial allocation policy (t = 0)")
     condition: str = param("on_event", help="condition policy: when to reallocate")
     reallocation: str = param("greedy", help="reallocation policy: how to reallocate")
-
-
-@dataclass
-class TrainSettings:
-    """The ``[train]`` table: hyperparameters of `ata train` (learned methods only)."""
-
-    seed: int = param(12345, min=0, help="root seed of the training scenarios (evaluation "
-                      "scenarios use other seeds)")
-    batch_size: int = param(32, min=1, max=4096, help="scenarios per training batch")
-    lr: float = param(1e-3, min=0.0, max=1.0, help="Adam learning rate of the imitation phase")
-    aux_lr: float = param(3e-3, min=0.0, max=1.0, help="Adam learning rate of the aux phase")
-    rl_lr: float = param(1e-4, min=0.0, max=1.0, help="Adam learning rate of the RL phase")
-    entropy: float = param(0.01, min=0.0, help="entropy bonus weight")
-    grad_clip: float = param(1.0, min=0.0, help="gradient norm clip (0: none)")
-    aux_batches: int = param(8, min=0, help="rollout batches collected for the auxiliary "
-                             "reconstruction (supervised, before RL)")
-    aux_steps: int = param(400, min=0, help="supervised steps of the reconstructors")
-    imitation_steps: int = param(150, min=0, help="warm-start steps imitating the greedy "
-                                 "teacher (0: RL from scratch)")
-    rl_steps: int = param(200, min=0, help="REINFORCE iterations")
-    eval_every: int = param(25, min=1, help="evaluate on held-out scenarios every N RL steps")
-    eval_scenarios: int = param(64, min=1, help="held-out scenarios per evaluation")
-    checkpoint_every: int = param(10, min=1, help="write a checkpoint every N steps")
-    d_model: int = param(32, min=8, help="embedding width")
-    heads: int = param(4, min=1, help="attention heads")
-    layers: int = param(2, min=1, help="attention layers")
-    z_dim: int = param(4, min=1, help="cVAE latent size")
-    recon_hidden: int = param(32, min=4, help="width of the reconstruction networks")
-    threads: int = param(2, min=1, help="torch CPU threads")
-    # TR-POMDP's decentralised DQN agents (`ata train --plugins trp`)
-    dqn_steps: int = param(300, min=0, help="DQN iterations: each rolls out batch_size "
-                           "episodes with epsilon-greedy agents, then makes dqn_updates steps")
-    dqn_updates: int = param(32, min=1, help="gradient steps per DQN iteration")
-    dqn_lr: float = param(1e-3, min=0.0, max=1.0, help="Adam learning rate of the agents")
-    dqn_gamma: float = param(0.9, min=0.0, max=1.0, help="discount per decision epoch")
-    dqn_buffer: int = param(30000, min=64, help="replay buffer capacity, transitions per "
-                            "member kind")
-    dqn_minibatch: int = param(256, min=1, help="transitions per gradient step")
-    dqn_target_sync: int = param(50, min=1, help="gradient steps between copies of the "
-                                 "online networks into the target networks")
-    eps_start: float = param(1.0, min=0.0, max=1.0, help="epsilon of the first DQN iteration")
-    eps_end: float = param(0.05, min=0.0, max=1.0, help="epsilon after the decay")
-    eps_decay_steps: int = param(200, min=1, help="DQN iterations of linear epsilon decay")
-    dqn_k: int = param(4, min=1, help="candidate POIs per agent (and roles a human may "
-                       "release)")
-    dqn_hidden: int = param(64, min=4, help="width of the agents' Q-networks")
-    reward_scale: float = param(20.0, min=1e-6, help="points per unit of agent reward")
-    team_weight: float = param(0.5, min=0.0, help="weight of the team's points of the epoch "
-                               "in each agent's reward, beside the points of the POIs it holds")
-    load_overload: float = param(0.1, min=0.0, help="load management: penalty per unit of "
-                                 "overload (human utilisation above human_load_cap, robots "
-                                 "holding more than 1.5 fair shares of the open POIs)")
-    load_use: float = param(0.005, min=0.0, help="load management: penalty per non-idle "
-                            "action (discourages needless changes)")
-    human_load_cap: float = param(0.65, min=0.0, max=0.99, help="utilisation above which a "
-                                  "human counts as overloaded")
+    trainer: str = param("none", help="what `ata train` trains the learned components with "
+                         "(none: nothing to train)")
 
 
 SLOT_KINDS = {"task_model": "task_model", "human_model": "human_model",
               "robot_model": "robot_model", "routing": "routing", "injectors": "injector",
               "reconstructors": "reconstructor", "initial": "policy", "condition": "condition",
               "reallocation": "policy"}
+"""The slots a simulation fills, and the kind of component each takes."""
+TRAINER_SLOT = ("trainer", "trainer")
+"""The slot `ata train` fills (slot, kind); "none" leaves it empty."""
 
 
 @dataclass
@@ -143,7 +92,6 @@ class Mission:
     slots: ComponentSlots
     component_settings: dict[str, Any]   # component name -> its Settings instance (or None)
     source: str = "<built-in>"
-    train: TrainSettings = dataclasses.field(default_factory=TrainSettings)
 
     @property
     def sizes(self) -> TeamSize:
@@ -171,6 +119,8 @@ class Mission:
             for name in (value if isinstance(value, list) else [value]):
                 if (kind, name) not in out:
                     out.append((kind, name))
+        if self.slots.trainer != "none":
+            out.append((TRAINER_SLOT[1], self.slots.trainer))
         return out
 
     def resolved(self) -> dict[str, Any]:
@@ -179,7 +129,6 @@ class Mission:
                                "components": settings_dict(self.slots)}
         for name, st in self.component_settings.items():
             out[name] = settings_dict(st) if st is not None else {}
-        out["train"] = settings_dict(self.train)
         return out
 
     def to_toml(self) -> str:
@@ -253,7 +202,11 @@ def validate(raw: dict[str, Any], registry: Register, source: str = "<built-in>"
 
 
 def _validate(raw: dict[str, Any], registry: Register, source: str) -> Mission:
-    for table in ("mission", "components", "train"):
+    if "train" in raw:
+        raise MissionError("[train]", None, "the training settings moved to the trainer's own "
+                           "table: name the trainer in [components] trainer (ata_hrl, dqn) and "
+                           "put its keys in the table of that name (see docs/training.md)")
+    for table in ("mission", "components"):
         if table in raw and not isinstance(raw[table], dict):
             raise MissionError(f"[{table}]", None, "must be a table")
     settings = build_settings(MissionSettings, raw.get("mission"), "[mission]")
@@ -285,8 +238,12 @@ def _validate(raw: dict[str, Any], registry: Register, source: str) -> Mission:
         for name in names:
             info = registry.get(kind, name, f"[components] key {slot!r}")
             chosen.setdefault(name, info)
+    if slots.trainer != "none":
+        slot, kind = TRAINER_SLOT
+        chosen.setdefault(slots.trainer, registry.get(kind, slots.trainer,
+                                                      f"[components] key {slot!r}"))
 
-    known_tables = {"mission", "components", "train", *chosen}
+    known_tables = {"mission", "components", *chosen}
     for table in raw:
         if table not in known_tables:
             raise MissionError(f"[{table}]", None, "names no chosen component; tables allowed: "
@@ -304,9 +261,8 @@ def _validate(raw: dict[str, Any], registry: Register, source: str) -> Mission:
             component_settings[name] = None
         else:
             component_settings[name] = build_settings(cls, table, f"[{name}]")
-    train = build_settings(TrainSettings, raw.get("train"), "[train]")
     return Mission(settings=settings, slots=slots, component_settings=component_settings,
-                   source=source, train=train)
+                   source=source)
 
 
 def _check_clock(s: MissionSettings) -> None:

@@ -21,8 +21,9 @@ from ata import hookspecs
 from ata.core.errors import MissionError
 
 KINDS = ("task_model", "human_model", "robot_model", "routing", "injector", "reconstructor",
-         "policy", "condition")
-"""Component kinds. A ``policy`` may fill the initial and the reallocation slot."""
+         "policy", "condition", "trainer")
+"""Component kinds. A ``policy`` may fill the initial and the reallocation slot; a ``trainer``
+is built by `ata train` only (``ata.training``)."""
 
 BUILTIN_PLUGINS = (
     "ata.plugins.tasks",
@@ -42,9 +43,9 @@ BUILTIN_PLUGINS = (
 """Default-tier plugins, always loaded."""
 
 OPTIONAL_PLUGINS: dict[str, str] = {
-    "ita": "ata.plugins.policies.attention",
-    "ctr": "ata.plugins.ctr",
-    "aux": "ata.plugins.auxiliary",
+    "ita": "ata.plugins.ata_hrl.ita",
+    "ctr": "ata.plugins.ata_hrl.ctr",
+    "aux": "ata.plugins.ata_hrl.aux",
     "trp": "ata.plugins.tr_pomdp",
 }
 """Optional-tier plugins (the torch-based learned methods), loaded only when named."""

@@ -27,6 +27,8 @@ BUILTIN_MISSION = Path(__file__).resolve().parent.parent / "missions" / "default
 """`ata run`'s default: the full ATA-HRL method with its shipped weights."""
 BASELINE_MISSION = BUILTIN_MISSION.with_name("greedy.toml")
 """The greedy reference mission, the base that tests and benchmarks override."""
+TRAINING_MISSIONS = sorted(BUILTIN_MISSION.parent.glob("train_*.toml"))
+"""The built-in training missions; `ata train --plugins X` takes the one whose plugins are X."""
 
 
 @dataclass
@@ -59,6 +61,56 @@ def load_session(path: str | None = None, overrides: list[str] | None = None,
     registry = collect_components(pm)
     mission = mission_mod.validate(raw, registry, source=source)
     return Session(mission=mission, registry=registry, pm=pm)
+
+
+def closure(plugins: list[str]) -> frozenset[str]:
+    """A set of optional plugins with those they bring along (ctr and aux bring ita)."""
+    from ata.core.registry import OPTIONAL_REQUIRES
+    out = set(plugins)
+    for name in plugins:
+        out |= set(OPTIONAL_REQUIRES.get(name, ()))
+    return frozenset(out)
+
+
+def training_mission_for(plugins: list[str]) -> Path:
+    """The built-in training mission whose optional plugins are `plugins` (with what they bring
+    along): ctr,aux the full ATA-HRL; ctr w/o.AUX; ita the ITA alone; trp TR-POMDP; ita,trp
+    AtRL-TR."""
+    wanted = closure(plugins)
+    found = {}
+    for path in TRAINING_MISSIONS:
+        raw = mission_mod.read_toml(path)
+        found[closure(mission_mod.requested_plugins(raw))] = path
+    if wanted not in found:
+        known = "; ".join(",".join(sorted(k)) for k in found)
+        raise MissionError("--plugins", None, f"no built-in training mission for "
+                           f"{','.join(sorted(wanted)) or '(none)'}; there are: {known} (or "
+                           "give a training mission file)")
+    return found[wanted]
+
+
+def build_trainer(session: Session) -> Any:
+    """The trainer component the mission names in [components] trainer, built from its table;
+    its scenario ranges are checked to stay below the evaluation ids."""
+    from ata.training import TRAINING_ID_LIMIT
+    m = session.mission
+    name = m.slots.trainer
+    if name == "none":
+        raise MissionError("[components]", "trainer", "names no trainer: nothing to train "
+                           "(ata_hrl trains ATA-HRL's parts, dqn the TR-POMDP agents)",
+                           file=m.source)
+    info = session.registry.get("trainer", name, "[components] key 'trainer'")
+    try:
+        trainer = info.factory(m.component_settings.get(name), m, session.registry)
+    except MissionError as exc:
+        raise exc.with_file(m.source) from None
+    trainer.component_name = name
+    for seed, lo, hi in trainer.scenario_ranges():
+        if hi > TRAINING_ID_LIMIT:
+            raise MissionError(f"[{name}]", None, f"trains on scenario ids up to {hi - 1}, "
+                               f"which reach the evaluation ids (from {TRAINING_ID_LIMIT})",
+                               file=m.source)
+    return trainer
 
 
 @dataclass

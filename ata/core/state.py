@@ -174,6 +174,9 @@ class EpisodeRecord:
     metrics: dict[str, np.ndarray] = field(default_factory=dict)   # (B,) per-scenario extras
     task_gain: np.ndarray | None = None  # (B, P) points each POI's classification earned
     task_epoch: np.ndarray | None = None  # (B, P) epoch of that classification (-1: never)
+    r_expected: np.ndarray | None = None  # (B, T) r_perf in expectation: the points the
+    #                                       epoch's classifications expected, given how they
+    #                                       were made (for training; the outcome draws aside)
     warnings: list[str] = field(default_factory=list)   # for the run's summary
 
     @classmethod
@@ -181,7 +184,7 @@ class EpisodeRecord:
         return cls(r_perf=np.zeros((batch, n_epochs)),
                    reallocated=np.zeros((batch, n_epochs), dtype=bool),
                    allocations=np.zeros((batch, n_epochs, n_tasks, 3), dtype=np.int16),
-                   upper_bound=np.zeros(batch))
+                   upper_bound=np.zeros(batch), r_expected=np.zeros((batch, n_epochs)))
 
     @property
     def total(self) -> np.ndarray:

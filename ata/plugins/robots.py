@@ -231,6 +231,7 @@ class RobotModel:
         ob, op = b[onboard], p[onboard]
         t.classified_at[ob, op] = te[onboard]
         t.gain[ob, op] = np.where(win, points, -points)[onboard]
+        t.p_success[ob, op] = tables.P_RC[q, d][onboard]
         t.cls_ready[b[~onboard], p[~onboard]] = te[~onboard]
         r.target[b, rr] = -1
         r.leg_start[b, rr] = np.inf

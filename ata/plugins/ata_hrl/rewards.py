@@ -6,6 +6,11 @@
 
 Delta r is, at each reallocation epoch, r at that epoch minus r at the previous reallocation
 epoch (the initial allocation, epoch 0, for the first one).
+
+``r_t`` is the points the team gained in epoch t (``record.r_perf``), or, for training, their
+expectation given how each classification was made (``record.r_expected``): the outcome draws
+do not change what happens next, so this removes their noise from the reward without changing
+its expectation.
 """
 
 from __future__ import annotations
@@ -19,9 +24,9 @@ def _alloc(record: EpisodeRecord, t: int) -> Allocation:
     return Allocation.from_stack(record.allocations[:, t])
 
 
-def delta_performance(record: EpisodeRecord) -> np.ndarray:
+def delta_performance(r: np.ndarray, reallocated: np.ndarray) -> np.ndarray:
     """sum over reallocation epochs of r(t) - r(previous reallocation epoch), (B,)."""
-    r, realloc = record.r_perf, record.reallocated.copy()
+    realloc = reallocated.copy()
     realloc[:, 0] = False
     T = r.shape[1]
     epochs = np.where(realloc, np.arange(T), 0)
@@ -31,10 +36,12 @@ def delta_performance(record: EpisodeRecord) -> np.ndarray:
     return np.where(realloc, deltas, 0.0).sum(axis=1)
 
 
-def hierarchical_rewards(record: EpisodeRecord) -> dict[str, np.ndarray]:
-    """R_ITA, R_C and R_TR per scenario, plus the total team performance."""
-    B, T = record.r_perf.shape
-    total = record.r_perf.sum(axis=1)
+def hierarchical_rewards(record: EpisodeRecord, expected: bool = False) -> dict[str, np.ndarray]:
+    """R_ITA, R_C and R_TR per scenario, plus the total team performance (of r_perf, or of
+    r_expected with ``expected``)."""
+    r = record.r_expected if expected else record.r_perf
+    B, T = r.shape
+    total = r.sum(axis=1)
     realloc = record.reallocated.copy()
     realloc[:, 0] = False
     ita = _alloc(record, 0)
@@ -46,7 +53,7 @@ def hierarchical_rewards(record: EpisodeRecord) -> dict[str, np.ndarray]:
         now = _alloc(record, t)
         from_ita += np.where(realloc[:, t], frobenius_change(now, ita), 0.0)
         step_change += np.where(realloc[:, t], frobenius_change(now, _alloc(record, t - 1)), 0.0)
-    delta = delta_performance(record)
+    delta = delta_performance(r, record.reallocated)
     n_realloc = realloc.sum(axis=1)
     return {"total": total,
             "R_ITA": total - 0.2 * from_ita,

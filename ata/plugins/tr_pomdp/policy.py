@@ -1,7 +1,7 @@
 """TR-POMDP reallocation (optional plugin ``trp``): decentralised DQN agents, one per member.
 
 The baseline of Wu et al. (ICRA 2022) as the paper uses it: every epoch, each human and each
-robot acts on its own partial observation (``ata.learn.dqn``) with a Q-network shared by its
+robot acts on its own partial observation (``agents``) with a Q-network shared by its
 kind, and the joint action edits the allocation in force. Uncertainty is handled only by the
 POMDP formulation: the agents read the raw observation, never a reconstruction. Pair it with
 ``condition = "always"``; the initial allocation is ``random`` (TR-POMDP) or the attention ITA
@@ -19,8 +19,12 @@ import numpy as np
 from ata import hookimpl
 from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext
-from ata.learn import dqn
-from ata.learn.runtime import CheckpointError, load_cached
+from ata.plugins.tr_pomdp import agents as dqn
+from ata.training import CheckpointError, load_cached, trained_on
+
+KIND = "tr_pomdp"
+"""The ``kind`` a TR-POMDP checkpoint carries."""
+
 
 def agents_from_checkpoint(data: dict[str, Any], path: str | Path) -> dqn.AgentNets:
     """The agents' Q-networks stored in a checkpoint (its ``agents`` entry)."""
@@ -38,7 +42,7 @@ def agents_from_checkpoint(data: dict[str, Any], path: str | Path) -> dqn.AgentN
 
 def load_agents(spec: str) -> dqn.AgentNets:
     """The agents of a checkpoint, in evaluation mode, cached per process."""
-    return load_cached(spec, agents_from_checkpoint, kind="agents")
+    return load_cached(spec, agents_from_checkpoint, KIND)
 
 
 @dataclass
@@ -66,9 +70,14 @@ class TRPOMDPPolicy:
                  nets: dqn.AgentNets | None = None, log: list[Transition] | None = None,
                  epsilon: float | None = None):
         self.settings = settings
+        self.from_checkpoint = nets is None
         self.nets = nets if nets is not None else load_agents(settings.checkpoint)
         self.log = log
         self.epsilon = settings.epsilon if epsilon is None else epsilon
+
+    @hookimpl
+    def ata_trained_on(self) -> list[tuple[int, int, int]]:
+        return trained_on(self.settings.checkpoint, KIND) if self.from_checkpoint else []
 
     @hookimpl
     def ata_reallocate(self, ctx: DecisionContext, active: np.ndarray) -> Allocation:
@@ -79,7 +88,3 @@ class TRPOMDPPolicy:
             self.log.append(Transition(inputs, ra, ha))
         return dqn.apply_actions(ctx.previous, inputs, ra, rq, ha, hq, cfg.k)
 
-
-@hookimpl
-def ata_register_components(register) -> None:
-    register("policy", "tr_pomdp", TRPOMDPPolicy)

@@ -1,1 +1,0 @@
-"""The learned parts of ATA-HRL (torch): features, networks, checkpoints, training."""

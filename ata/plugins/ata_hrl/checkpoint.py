@@ -1,0 +1,51 @@
+"""ATA-HRL's checkpoints: the network a checkpoint describes, cached once per process.
+
+Reading is ``ata.training.read_checkpoint`` (``torch.load(..., weights_only=True)``): a file that
+is missing, truncated, not a checkpoint, of another method (a TR-POMDP checkpoint) or of another
+architecture is refused with a message naming it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from ata.training import CheckpointError, load_cached, read_checkpoint, trained_on
+
+KIND = "ata_hrl"
+"""The ``kind`` an ATA-HRL checkpoint carries."""
+FORMAT = 2
+
+__all__ = ["KIND", "FORMAT", "CheckpointError", "read_checkpoint", "net_from_checkpoint",
+           "load_net", "trained_ranges"]
+
+
+def net_from_checkpoint(data: dict[str, Any], path: str | Path, expect=None):
+    """Build the ATA-HRL network a checkpoint describes and load its weights."""
+    from ata.plugins.ata_hrl.network import ATAHRLNet, NetConfig
+    if "model" not in data or "config" not in data:
+        raise CheckpointError(path, "holds no ATA-HRL network (no model or config)")
+    try:
+        cfg = NetConfig(**data["config"])
+    except TypeError as exc:
+        raise CheckpointError(path, f"has an unknown architecture ({exc})") from None
+    if expect is not None and cfg != expect:
+        raise CheckpointError(path, f"architecture {cfg.as_dict()} does not match the "
+                                    f"training's {expect.as_dict()}")
+    net = ATAHRLNet(cfg)
+    try:
+        net.load_state_dict(data["model"])
+    except RuntimeError as exc:
+        raise CheckpointError(path, "weights do not fit the architecture: "
+                                    f"{str(exc).splitlines()[0][:200]}") from None
+    return net
+
+
+def load_net(spec: str):
+    """The ATA-HRL network of a checkpoint, in evaluation mode, cached per process."""
+    return load_cached(spec, net_from_checkpoint, KIND)
+
+
+def trained_ranges(spec: str) -> list[tuple[int, int, int]]:
+    """The scenario ranges the checkpoint's training used."""
+    return trained_on(spec, KIND)

@@ -1,0 +1,303 @@
+"""The components of ATA-HRL: the attention ITA policy (``attention``), conditional task
+reallocation (``ctr``: pi_C and pi_TR), and the auxiliary state reconstruction (``aux``).
+
+Each decides with the network of one checkpoint. At run time they take the mode of every
+decision (or sample it from each scenario's own random stream, ``sample = true``); a trainer
+hands them its live network, a sampler and a recorder instead, and they record what the update
+needs to recompute each decision's log-probability. ``learned = false`` switches the learned
+part off: the policy then decides by the greedy prior alone (the 'learned part off' rows of the
+docs).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import torch
+
+from ata import hookimpl
+from ata.core.settings import param
+from ata.core.state import Allocation, DecisionContext, Observation, SimState
+from ata.plugins.ata_hrl import decode as D
+from ata.plugins.ata_hrl.checkpoint import load_net, trained_ranges
+from ata.plugins.ata_hrl.decoder import DecodeSettings, Decoder
+from ata.plugins.ata_hrl.features import (inherent_features, seen_state, state_features,
+                                          to_tensors)
+from ata.plugins.ata_hrl.network import ATAHRLNet, COND_FEATURES
+from ata.plugins.policies.greedy import RetaskCost
+from ata.plugins.policies.plan import PlanStart, plan_start
+
+
+# -- what a training rollout records --------------------------------------------------------------
+
+@dataclass
+class Recorder:
+    """What the components record in a training rollout (numpy; the update recomputes)."""
+
+    inherent: dict[str, np.ndarray] | None = None           # I features (E, N, F)
+    ita: D.DecodeTrace | None = None
+    cond_state: list[dict[str, np.ndarray]] = field(default_factory=list)   # per epoch >= 1
+    cond_feats: list[np.ndarray] = field(default_factory=list)              # (E, F_c)
+    cond_prior: list[np.ndarray] = field(default_factory=list)              # (E,)
+    cond_choice: list[np.ndarray] = field(default_factory=list)             # (E,) bool
+    tr: list[dict[str, Any]] = field(default_factory=list)  # per reallocation: rows, k, trace
+
+
+def decode_settings(ctx: DecisionContext) -> DecodeSettings:
+    """The decoder's model constants: the greedy component's where the mission has one, and
+    the mission's re-tasking cost."""
+    cost = RetaskCost.of(ctx)
+    mission = ctx.params.get("mission")
+    greedy = mission.component_settings.get("greedy") if mission is not None else None
+    keys = {}
+    if greedy is not None:
+        keys = {k: getattr(greedy, k) for k in ("capture_s", "fatigue_floor", "human_time_cost",
+                                                "rate_offset_s")}
+    return DecodeSettings(rebrief_s=cost.rebrief_s, replan_s=cost.replan_s, **keys)
+
+
+def decoder_start(ctx: DecisionContext, seen: dict[str, np.ndarray] | None
+                  ) -> tuple[PlanStart, np.ndarray, np.ndarray]:
+    """The decoder's start from I and S as the policy sees it: (plan start, fatigue now,
+    utilisation now). Reconstructed robot rows move the robots and take down the ones they
+    show down; a robot observed down stays down."""
+    start = plan_start(ctx)
+    B, H = start.eta.shape
+    if seen is None:                                  # t = 0: fresh humans, nothing observed
+        return start, np.ones((B, H)), np.zeros((B, H))
+    if "aux_robots" in ctx.reconstructed:
+        rob = seen["robots"]
+        area = ctx.inherent.extras["area_m"][:, None]
+        down = rob[..., 3] < 0.5
+        start.robot_free = np.where(down, np.inf, start.robot_free)
+        moving = start.robot_at >= 0
+        xy = np.stack([rob[..., 0], rob[..., 1]], -1) * area[..., None]
+        start.robot_xy = np.where(moving[..., None], start.robot_xy, xy)
+    return start, seen["humans"][..., 1], 1.0 - seen["humans"][..., 2]
+
+
+class LearnedComponent:
+    """Settings, the network and the way of deciding, shared by the ITA and CTR components."""
+
+    @dataclass
+    class Settings:
+        checkpoint: str = param("builtin:ata_hrl_a", help="trained weights: a path or "
+                                "builtin:NAME")
+        sample: bool = param(False, help="sample decisions (each scenario from its own random "
+                             "stream) instead of taking the mode")
+        learned: bool = param(True, help="false: decide by the greedy prior alone (the learned "
+                              "part switched off)")
+
+    def __init__(self, settings: "LearnedComponent.Settings", mission: Any,
+                 net: ATAHRLNet | None = None):
+        self.settings = settings
+        self.from_checkpoint = net is None
+        self.net = net if net is not None else load_net(settings.checkpoint)
+        self.recorder: Recorder | None = None
+        self.sampler: D.Chooser | None = None
+
+    @hookimpl
+    def ata_trained_on(self) -> list[tuple[int, int, int]]:
+        return trained_ranges(self.settings.checkpoint) if self.from_checkpoint else []
+
+    def train_with(self, net: ATAHRLNet, recorder: Recorder, sampler: D.Chooser) -> None:
+        """Decide with a trainer's live network, sampling with its sampler, and record."""
+        self.net, self.recorder, self.sampler = net, recorder, sampler
+
+    def chooser(self, ctx: DecisionContext, stream: str) -> D.Chooser:
+        if self.sampler is not None:
+            return self.sampler
+        if self.settings.sample:
+            rng, epoch = ctx.rng, ctx.epoch
+            return D.stream_sampler(lambda name, n, shape: rng.uniform(
+                f"{stream}.{name}.{n}", epoch, shape))
+        return D.argmax_chooser
+
+
+class AttentionITA(LearnedComponent):
+    """The initial allocation, decoded step by step with the ITA network (attention encoder of
+    I, capacity-aware decoder); as a reallocation policy it keeps the allocation."""
+
+    @hookimpl
+    def ata_initial_allocation(self, ctx: DecisionContext) -> Allocation:
+        feats = inherent_features(ctx.inherent)
+        start, fatigue, util = decoder_start(ctx, None)
+        dec = Decoder(start, np.ones(ctx.reallocatable.shape, bool), fatigue, util,
+                      decode_settings(ctx))
+        trace = None
+        if self.recorder is not None:
+            self.recorder.inherent = feats
+            trace = self.recorder.ita = D.DecodeTrace()
+        with torch.no_grad():
+            emb = self.net.ita.encoder(to_tensors(feats))
+        return D.decode(dec, self.net.ita, emb, self.chooser(ctx, "attention"),
+                        residual=self.settings.learned, trace=trace)
+
+    @hookimpl
+    def ata_reallocate(self, ctx: DecisionContext, active: np.ndarray) -> Allocation:
+        return ctx.previous
+
+
+def encoder_input(inherent: dict[str, np.ndarray], state: dict[str, np.ndarray]
+                  ) -> dict[str, torch.Tensor]:
+    """The CTR encoder's tokens: I and S features side by side."""
+    return to_tensors({g: np.concatenate([inherent[g], state[g]], -1) for g in inherent})
+
+
+class CTRPolicy(LearnedComponent):
+    """pi_C and pi_TR. At every epoch t >= 1 the state encoder reads I and S as the policy sees
+    it and the GRU of pi_C advances; pi_C decides whether to reallocate; where it does, pi_TR
+    decodes every reallocatable POI again, with 'keep its triple' as a choice, the re-briefs and
+    re-plans a change would cost among the decoder's features, and the previous allocation as
+    context. In the options framework: pi_C's option starts at every epoch and ends after its
+    decision; pi_TR's starts when pi_C says yes and ends once it has reallocated. With
+    ``condition = "always"`` pi_TR runs every epoch (the w/o.C ablation)."""
+
+    def __init__(self, *args: Any, **kwargs: Any):
+        super().__init__(*args, **kwargs)
+        self.hidden: torch.Tensor | None = None
+        self.epoch = -1
+        self.emb: dict[str, torch.Tensor] | None = None
+        self.seen: dict[str, np.ndarray] | None = None
+        self.prev_working: np.ndarray | None = None
+        self.prev_attrs: np.ndarray | None = None
+        self.last_realloc: np.ndarray | None = None
+        self.decided: np.ndarray | None = None
+
+    def _observe(self, ctx: DecisionContext) -> None:
+        """Once per epoch: encode the state and compute the condition features."""
+        if self.epoch == ctx.epoch:
+            return
+        self.epoch = ctx.epoch
+        inherent = inherent_features(ctx.inherent)
+        self.seen = seen_state(ctx)
+        with torch.no_grad():
+            self.emb = self.net.tr.encoder(encoder_input(inherent, self.seen))
+        self.cond_feats, self.cond_prior = condition_features(self, ctx)
+        if self.recorder is not None:
+            rec = self.recorder
+            if rec.inherent is None:
+                rec.inherent = inherent
+            rec.cond_state.append(self.seen)
+            rec.cond_feats.append(self.cond_feats)
+            rec.cond_prior.append(self.cond_prior)
+
+    @hookimpl
+    def ata_should_reallocate(self, ctx: DecisionContext) -> np.ndarray:
+        self._observe(ctx)
+        B = ctx.reallocatable.shape[0]
+        if self.hidden is None:
+            self.hidden = torch.zeros(B, self.net.cfg.d_model)
+        pooled = torch.cat([self.emb[g] for g in ("humans", "robots", "tasks")], 1).mean(1)
+        with torch.no_grad():
+            logit, self.hidden = self.net.cond(pooled, torch.as_tensor(self.cond_feats),
+                                               torch.as_tensor(self.cond_prior), self.hidden,
+                                               residual=self.settings.learned)
+        decide = self.chooser(ctx, "ctr.condition")("cond", torch.stack(
+            [torch.zeros_like(logit), logit], -1)).astype(bool)
+        if self.recorder is not None:
+            self.recorder.cond_choice.append(decide.copy())
+        self.decided = decide
+        self.last_realloc = np.where(decide, ctx.epoch, self.last_realloc)
+        return decide
+
+    @hookimpl
+    def ata_reallocate(self, ctx: DecisionContext, active: np.ndarray) -> Allocation:
+        self._observe(ctx)
+        rows = np.nonzero(active)[0]
+        out = ctx.previous.copy()
+        if rows.size == 0:
+            return out
+        sub = ctx.take(rows)
+        seen = {g: v[rows] for g, v in self.seen.items()}
+        start, fatigue, util = decoder_start(sub, seen)
+        dec = Decoder(start, sub.reallocatable, fatigue, util, decode_settings(ctx),
+                      previous=sub.previous)
+        emb = {g: v[rows] for g, v in self.emb.items()}
+        trace = None
+        if self.recorder is not None:
+            trace = D.DecodeTrace()
+            self.recorder.tr.append({"epoch": ctx.epoch, "rows": rows, "trace": trace,
+                                     "state": seen})
+        alloc = D.decode(dec, self.net.tr, emb, self.chooser(ctx, "ctr"),
+                         residual=self.settings.learned, trace=trace)
+        out.robot[rows], out.navigator[rows], out.classifier[rows] = \
+            alloc.robot, alloc.navigator, alloc.classifier
+        return out
+
+
+def condition_features(policy: CTRPolicy, ctx: DecisionContext
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """pi_C's inputs beside the state embedding, (B, COND_FEATURES), and its prior (B,): +1
+    where the observation shows a robot newly down or a POI's kind or difficulty newly changed
+    (the ``on_event`` rule), else -1."""
+    S, seen = ctx.observed, policy.seen
+    B, P = ctx.reallocatable.shape
+    R = ctx.sizes.robots
+    T = ctx.clock.n_epochs
+    working = seen["robots"][..., 3] > 0.5
+    attrs = np.stack([S["tasks"].col("kind"), S["tasks"].col("difficulty")], -1)
+    if policy.prev_working is None:
+        est = ctx.inherent["tasks"]
+        policy.prev_working = np.ones_like(working)
+        policy.prev_attrs = np.stack([est.col("kind"), est.col("difficulty")], -1)
+        policy.last_realloc = np.zeros(B)
+    failed = (policy.prev_working & ~working)
+    changed = (attrs != policy.prev_attrs).any(-1)
+    event = failed.any(1) | changed.any(1)
+    policy.prev_working, policy.prev_attrs = working, attrs
+    prev = ctx.previous
+    held_by_down = (ctx.reallocatable & ~np.take_along_axis(working, prev.robot, 1)).sum(1)
+    util = 1.0 - seen["humans"][..., 2]
+    unvisited = S["tasks"].col("unvisited")
+    feats = np.stack([event.astype(float), failed.sum(1) / R, changed.sum(1) / P,
+                      held_by_down / P, np.full(B, ctx.epoch / T),
+                      (ctx.epoch - policy.last_realloc) / T, util.mean(1), util.max(1),
+                      util.min(1), unvisited.mean(1)], -1)
+    assert feats.shape[1] == COND_FEATURES
+    return feats.astype(np.float32), np.where(event, 1.0, -1.0).astype(np.float32)
+
+
+class AuxReconstructor:
+    """cVAE for fatigue, three stacked GRUs plus a feed-forward layer for delayed states.
+
+    Each epoch it writes, into the reconstructed-state dict the policies read: ``aux_fatigue``
+    (B, H), the cVAE's fatigue estimate from the noisy observation conditioned on working hours
+    and cognitive ability; ``aux_robots`` (B, R, 5) and ``aux_tasks`` (B, P, 7), the stacked-GRU
+    estimates of the current robot and task rows (in the space of ``state_features``) from each
+    entity's sequence of observed rows. Without it the ``identity`` reconstructor leaves the
+    raw state (the w/o.AUX ablation)."""
+
+    @dataclass
+    class Settings:
+        checkpoint: str = param("builtin:ata_hrl_a", help="trained weights: a path or "
+                                "builtin:NAME")
+
+    def __init__(self, settings: "AuxReconstructor.Settings", mission: Any,
+                 net: ATAHRLNet | None = None):
+        self.settings = settings
+        self.net = net if net is not None else load_net(settings.checkpoint)
+        self.hidden: dict[str, torch.Tensor | None] = {"robots": None, "tasks": None}
+
+    @hookimpl
+    def ata_trained_on(self) -> list[tuple[int, int, int]]:
+        return trained_ranges(self.settings.checkpoint) if self.settings is not None else []
+
+    @hookimpl
+    def ata_reconstruct(self, sim: SimState, obs: Observation, inherent: Observation,
+                        out: dict[str, np.ndarray]) -> None:
+        feats = state_features(obs)
+        with torch.no_grad():
+            f_obs = torch.as_tensor(obs["humans"].col("fatigue"), dtype=torch.float32)
+            hours = torch.as_tensor(obs["humans"].col("working_time"), dtype=torch.float32)
+            cog = torch.as_tensor(inherent["humans"].col("cognitive"), dtype=torch.float32)
+            recon, _, _ = self.net.fatigue(f_obs, hours, cog)
+            out["aux_fatigue"] = recon.numpy().astype(np.float64)
+            for group in ("robots", "tasks"):
+                x = torch.as_tensor(feats[group], dtype=torch.float32)
+                B, N, F = x.shape
+                est, self.hidden[group] = self.net.latency[group](x.reshape(B * N, 1, F),
+                                                                  self.hidden[group])
+                out[f"aux_{group}"] = est.reshape(B, N, F).numpy().astype(np.float64)

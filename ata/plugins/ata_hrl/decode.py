@@ -1,0 +1,160 @@
+"""Running the decoder with a network: choose step by step (mode, sample or the prior alone),
+and record what a training update needs to recompute each choice's log-probability."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import torch
+
+from ata.core.state import Allocation
+from ata.plugins.ata_hrl.decoder import Decoder, StepInputs
+from ata.plugins.ata_hrl.network import KINDS, AllocationNet, step_context
+
+Chooser = Callable[[str, torch.Tensor], np.ndarray]
+"""(kind, logits (E, N)) -> chosen index per episode (E,)."""
+
+
+def argmax_chooser(kind: str, logits: torch.Tensor) -> np.ndarray:
+    return logits.argmax(-1).numpy()
+
+
+def torch_sampler(generator: torch.Generator) -> Chooser:
+    """Sample every choice from the softmax of its logits with torch's generator (training)."""
+
+    def choose(kind: str, logits: torch.Tensor) -> np.ndarray:
+        u = torch.rand(logits.shape, generator=generator).clamp(1e-12, 1 - 1e-12)
+        return (logits - torch.log(-torch.log(u))).argmax(-1).numpy()
+
+    return choose
+
+
+def stream_sampler(uniform: Callable[[str, int, tuple], np.ndarray]) -> Chooser:
+    """Sample by the Gumbel-max trick from each scenario's own random stream (evaluation), so a
+    scenario's choices do not depend on its batch. `uniform(name, counter, shape)`."""
+    counter = {"n": 0}
+
+    def choose(kind: str, logits: torch.Tensor) -> np.ndarray:
+        counter["n"] += 1
+        u = np.clip(uniform(f"ata_hrl.{kind}", counter["n"], tuple(logits.shape[1:])),
+                    1e-12, 1 - 1e-12)
+        g = torch.as_tensor(-np.log(-np.log(u)), dtype=logits.dtype)
+        return (logits + g).argmax(-1).numpy()
+
+    return choose
+
+
+@dataclass
+class DecodeTrace:
+    """Per sub-decision kind, per step: the inputs, the context indices and the choice."""
+
+    steps: dict[str, dict[str, list[np.ndarray]]] = field(
+        default_factory=lambda: {k: {"features": [], "mask": [], "prior": [], "choice": [],
+                                     "active": [], "robot": [], "task": []} for k in KINDS})
+
+    def add(self, kind: str, inp: StepInputs, mask: np.ndarray, choice: np.ndarray,
+            active: np.ndarray, robot: np.ndarray | None, task: np.ndarray | None) -> None:
+        d = self.steps[kind]
+        d["features"].append(inp.features)
+        d["mask"].append(mask)
+        d["prior"].append(inp.prior.astype(np.float32))
+        d["choice"].append(choice)
+        d["active"].append(active)
+        zeros = np.zeros_like(choice)
+        d["robot"].append(zeros if robot is None else robot)
+        d["task"].append(zeros if task is None else task)
+
+    @property
+    def n_steps(self) -> int:
+        return len(self.steps["poi"]["choice"])
+
+    def stacked(self, kind: str) -> dict[str, np.ndarray]:
+        return {k: np.stack(v) for k, v in self.steps[kind].items()}
+
+
+def _tensors(inp: StepInputs, mask: np.ndarray) -> tuple[torch.Tensor, ...]:
+    return (torch.from_numpy(inp.features), torch.as_tensor(inp.prior, dtype=torch.float32),
+            torch.from_numpy(mask))
+
+
+def decode(dec: Decoder, net: AllocationNet, emb: dict[str, torch.Tensor], choose: Chooser,
+           *, residual: bool = True, trace: DecodeTrace | None = None) -> Allocation:
+    """Decode every POI left in `dec` with the network's scorers (no gradient)."""
+    E, R = dec.E, dec.R
+    e = np.arange(E)
+    prev = dec.previous
+    cands = {k: net.candidates(k, emb) for k in KINDS}
+
+    def pick(kind: str, inp: StepInputs, mask: np.ndarray, active: np.ndarray, robot, task):
+        feats, prior, m = _tensors(inp, mask)
+        idx = {"robot": torch.as_tensor(robot if robot is not None else np.zeros(E, np.int64)),
+               "task": torch.as_tensor(task if task is not None else np.zeros(E, np.int64))}
+        ctx = step_context(kind, emb, idx)
+        n = m.shape[1]
+        logits = net.scorers[kind](feats, cands[kind][:, :n], ctx, prior, m, residual)
+        choice = choose(kind, logits)
+        if trace is not None:
+            trace.add(kind, inp, mask, choice, active, robot, task)
+        return choice
+
+    with torch.no_grad():
+        while True:
+            pi = dec.poi_inputs()
+            active = pi.active
+            if not active.any():
+                break
+            p = pick("poi", pi, pi.mask, active, dec.r_ff, None)
+            ri = dec.robot_inputs(p)
+            r = pick("robot", ri, ri.mask, active, None, p)
+            keep = r == R
+            if prev is not None:
+                r = np.where(keep, prev.robot[e, p], r)
+            ni = dec.nav_inputs(p, r)
+            nmask = ni.mask
+            if prev is not None and keep.any():
+                forced = np.zeros_like(nmask)
+                forced[e, prev.navigator[e, p] + 1] = True
+                nmask = np.where(keep[:, None], forced, nmask)
+            n = pick("nav", ni, nmask, active, r, p) - 1
+            ci = dec.cls_inputs(p, r, n)
+            cmask = ci.mask
+            if prev is not None and keep.any():
+                forced = np.zeros_like(cmask)
+                forced[e, prev.classifier[e, p] + 1] = True
+                cmask = np.where(keep[:, None], forced, cmask)
+            c = pick("cls", ci, cmask, active, r, p) - 1
+            dec.commit(active, p, r, n, c)
+    return dec.finish()
+
+
+def trace_log_prob(net: AllocationNet, emb: dict[str, torch.Tensor], trace: DecodeTrace,
+                   residual: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
+    """Sum over the decode's steps of each episode's log-probability of its choices, and of
+    the entropies of the sub-decisions, both (E,), with gradient."""
+    E = emb["tasks"].shape[0]
+    logp = torch.zeros(E)
+    ent = torch.zeros(E)
+    if trace.n_steps == 0:
+        return logp, ent
+    for kind in KINDS:
+        st = trace.stacked(kind)
+        feats = torch.from_numpy(st["features"])                 # (S, E, N, F)
+        mask = torch.from_numpy(st["mask"])
+        prior = torch.from_numpy(st["prior"])
+        n = mask.shape[-1]
+        cand = net.candidates(kind, emb)[:, :n]                  # (E, N, d)
+        idx = {"robot": torch.from_numpy(st["robot"]), "task": torch.from_numpy(st["task"])}
+        ctx = step_context(kind, emb, idx)                      # (S, E, d)
+        logits = net.scorers[kind](feats, cand, ctx, prior, mask, residual)
+        lsm = torch.log_softmax(logits, -1)
+        choice = torch.from_numpy(st["choice"]).long()
+        chosen = lsm.gather(-1, choice[..., None])[..., 0]
+        active = torch.from_numpy(st["active"]).float()
+        # a sub-decision with one legal choice (a forced 'keep') carries no probability mass
+        free = (mask.sum(-1) > 1).float() * active
+        logp = logp + (chosen * free).sum(0)
+        p = lsm.exp()
+        ent = ent + (-(p * lsm.clamp(min=-30)).sum(-1) * free).sum(0)
+    return logp, ent

@@ -1,0 +1,480 @@
+"""Capacity-aware decoding of an allocation, step by step, for the ITA policy and pi_TR.
+
+POI after POI, in the order the policy sets (it points at the next POI among those left); within
+a POI the robot, then the navigator, then the classifier, each choice conditioned on the ones
+before it. After every choice the chosen members' dynamic keys are updated, as attention-model
+decoders for capacitated routing do: the robot's projected free time and position, each human's
+projected free time, booked work (hence fatigue) and busy intervals (hence utilisation), and,
+when reallocating, who has been re-briefed. The masks follow: a robot that can reach nothing by
+the horizon is done; only highly skilled humans navigate.
+
+Everything the decoder computes comes from what a policy may read: the inherent information I,
+the (reconstructed) observed state S and the model's tables, in expectation. For each candidate
+it gives the network features (times, image quality, success probability with fatigue and
+workload projected to the moment the work would start, expected points) and the score of the
+greedy heuristic as a prior (``ata.plugins.policies.greedy``'s rate of points per robot second,
+its net value of a classifier), so that the network with its learned part switched off decodes
+like greedy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ata.core.state import Allocation
+from ata.plugins import tables
+from ata.plugins.policies.plan import PlanStart
+
+BIN_S = 10.0
+"""Width of the time bins of the cumulative busy-time grid (the utilisation projection)."""
+
+POI_FEATURES = 18
+ROBOT_FEATURES = 12
+NAV_FEATURES = 12
+CLS_FEATURES = 14
+
+
+@dataclass(frozen=True)
+class DecodeSettings:
+    """The model constants the decoder assumes (the greedy heuristic's, for the priors)."""
+
+    capture_s: float = 3.0
+    fatigue_floor: float = 0.4
+    window_s: float = 300.0
+    human_time_cost: float = 0.04
+    rate_offset_s: float = 300.0
+    rebrief_s: float = 0.0
+    replan_s: float = 0.0
+
+
+@dataclass
+class StepInputs:
+    """One sub-decision for every episode: candidate features (E, N, F), legal candidates
+    (E, N), the heuristic prior (E, N), and which episodes decide at all (E,)."""
+
+    features: np.ndarray
+    mask: np.ndarray
+    prior: np.ndarray
+    active: np.ndarray
+
+
+class Decoder:
+    """The decoding state of E episodes (one allocation each) from a PlanStart.
+
+    :param start: where the plan starts (``ata.plugins.policies.plan.plan_start``).
+    :param todo: (E, P) the POIs to decode; the others keep ``previous`` (or robot 0, auto,
+        onboard when there is none).
+    :param fatigue_now: (E, H) the fatigue estimate now (raw or reconstructed S); the plan
+        projects it forward with the model's slope in working hours.
+    :param util_now: (E, H) each human's utilisation over the trailing window now.
+    :param previous: the allocation in force (reallocation), or None (initial allocation).
+    """
+
+    def __init__(self, start: PlanStart, todo: np.ndarray, fatigue_now: np.ndarray,
+                 util_now: np.ndarray, settings: DecodeSettings,
+                 previous: Allocation | None = None):
+        s = self.s = settings
+        self.start = start
+        E, P = todo.shape
+        H, R = start.eta.shape[1], start.speed.shape[1]
+        self.E, self.P, self.H, self.R = E, P, H, R
+        self.now, self.horizon = start.now, start.horizon
+        self.e = np.arange(E)
+        self.left = todo & start.open
+        self.previous = previous
+        if previous is not None:
+            self.robot, self.nav, self.cls = (previous.robot.copy(), previous.navigator.copy(),
+                                              previous.classifier.copy())
+        else:
+            self.robot = np.zeros((E, P), np.int64)
+            self.nav = np.full((E, P), -1, np.int64)
+            self.cls = np.full((E, P), -1, np.int64)
+        self.robot_free = start.robot_free.copy()
+        self.robot_xy = start.robot_xy.copy()
+        self.robot_done = ~np.isfinite(self.robot_free)
+        self.n_assigned = np.zeros((E, R))
+        self.human_free = start.human_free.copy()
+        self.booked = np.maximum(start.human_free - start.now, 0.0)
+        self.fatigue_now = np.clip(fatigue_now, s.fatigue_floor, 1.0)
+        self.util_now = np.clip(util_now, 0.0, 1.0)
+        # cumulative busy seconds of each human at the grid's edges: the utilisation now is
+        # spread evenly over the last window, then the plan's bookings add to it
+        self.edges = np.arange(0.0, start.horizon + s.window_s + BIN_S, BIN_S)
+        lo = start.now - s.window_s
+        ramp = np.clip(self.edges - lo, 0.0, s.window_s)
+        self.cum = self.util_now[..., None] * ramp
+        self._cache: tuple | None = None
+        self.touched = np.zeros((E, H), bool)
+        self.retask_robot = np.zeros((E, R), bool)
+        # static per decode
+        self.high = start.skill == 2
+        self.points = start.points
+        self.tx, self.ty = start.task_xy[..., 0], start.task_xy[..., 1]
+        self.prev_valid = np.zeros((E, P), bool)
+        if previous is not None:
+            alive = np.isfinite(np.take_along_axis(start.robot_free, previous.robot, axis=1))
+            self.prev_valid = alive
+        self.steps = 0
+
+    # -- projections -----------------------------------------------------------------------------
+    def fatigue_at(self) -> np.ndarray:
+        """Projected F_f of every human (E, H) after the work booked so far: the estimate now,
+        moved by the model's change over the booked hours."""
+        fl = self.s.fatigue_floor
+        hours0 = self.start.hours
+        rise = tables.fatigue(hours0 + self.booked / 3600.0, fl) - tables.fatigue(hours0, fl)
+        return np.clip(self.fatigue_now + rise, fl, 1.0)
+
+    def _cum_at(self, t: np.ndarray) -> np.ndarray:
+        """Cumulative busy seconds of every human by times t (E, N, H) (linear within a bin)."""
+        G = self.edges.size
+        x = np.clip(t, 0.0, self.edges[-1]) / BIN_S
+        k = np.minimum(x.astype(np.int64), G - 2)
+        frac = x - k
+        E, H = self.human_free.shape
+        flat = self.cum.reshape(-1)
+        base = ((np.arange(E)[:, None] * H + np.arange(H)[None, :]) * G)[:, None, :]
+        lo = flat.take(base + k)
+        return lo + frac * (flat.take(base + k + 1) - lo)
+
+    def utilisation_at(self, t: np.ndarray) -> np.ndarray:
+        """Projected busy share of [t - window, t] of every human, t (E, N, H)."""
+        w = self.s.window_s
+        busy = self._cum_at(t) - self._cum_at(t - w)
+        span = np.minimum(w, np.maximum(t, 1e-9))
+        return np.clip(busy / span, 0.0, 1.0)
+
+    def _book(self, e: np.ndarray, h: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
+        self.cum[e, h] += np.clip(self.edges[None, :] - a[:, None], 0.0,
+                                  (b - a)[:, None])
+        self.booked[e, h] += b - a
+        self.human_free[e, h] = np.maximum(self.human_free[e, h], b)
+        self._cache = None
+
+    def _legs(self, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Travel seconds (E, R, P) at autonomous speed from each robot's position, and
+        autonomous arrival times (cached until the next commit)."""
+        if self._cache is None:
+            self._cache = self._legs_now(e)
+        return self._cache
+
+    def _legs_now(self, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        gx = self.tx[e][:, None, :] - self.robot_xy[e, :, 0][..., None]
+        gy = self.ty[e][:, None, :] - self.robot_xy[e, :, 1][..., None]
+        travel = np.sqrt(gx * gx + gy * gy) / np.maximum(self.start.speed[e], 1e-9)[..., None]
+        return travel, self.robot_free[e][..., None] + travel + self.s.capture_s
+
+    def _human_value(self, q: np.ndarray, d: np.ndarray, arrive: np.ndarray, greedy: bool):
+        """For every human, classifying an image of quality q and difficulty d captured at
+        `arrive` (each (E, N)): (success probability, finish, begin, utilisation, F_w, F_f),
+        each (E, N, H). greedy: F_w = 1 and fatigue as greedy projects it (for the prior)."""
+        free = self.human_free[:, None, :]
+        begin = np.maximum(arrive[..., None], free)
+        finish = begin + tables.T_BAR[q, d][..., None]
+        f_d = tables.F_D[q, d][..., None]
+        if greedy:
+            f_f = tables.fatigue(self.start.hours + np.maximum(self.human_free - self.now, 0)
+                                 / 3600.0, self.s.fatigue_floor)[:, None, :]
+            f_w = u = None
+            p = 0.5 + (self.start.eta * self.start.lam)[:, None, :] * f_f * f_d
+        else:
+            f_f = self.fatigue_at()[:, None, :]
+            u = self.utilisation_at(begin)
+            f_w = tables.workload(u)
+            p = 0.5 + (self.start.eta * self.start.lam)[:, None, :] * f_f * f_w * f_d
+        return p, finish, begin, u, f_w, f_f
+
+    # -- sub-decisions ---------------------------------------------------------------------------
+    def poi_inputs(self) -> StepInputs:
+        """Which POI next: features relative to the robot free first (the greedy robot)."""
+        E, P, s, e = self.E, self.P, self.s, self.e
+        free = np.where(self.robot_done, np.inf, self.robot_free)
+        r_ff = free.argmin(axis=1)
+        travel, arr = self._legs(e)                                         # (E, R, P)
+        reach = (arr <= self.horizon) & ~self.robot_done[..., None]
+        mask = self.left & reach.any(axis=1)
+        active = mask.any(axis=1)
+        self.r_ff = r_ff
+        t_ff = self.robot_free[e, r_ff]
+        arr_ff = arr[e, r_ff]                                               # (E, P)
+        rtype = self.start.robot_type[e, r_ff]
+        d = self.start.diff
+        q_auto = tables.QUALITY[rtype[:, None], self.start.kind, 1]
+        q_nav = tables.QUALITY[rtype[:, None], self.start.kind, 2]
+        ev_auto = tables.expected_points(self.points, tables.P_RC[q_auto, d])
+        ev_navq = tables.expected_points(self.points, tables.P_RC[q_nav, d])
+        # the first free highly skilled navigator, as greedy
+        hf = np.where(self.high, self.human_free, np.inf)
+        hn = hf.argmin(axis=1)
+        has_nav = np.isfinite(hf[e, hn])
+        depart = np.maximum(t_ff, hf[e, hn])[:, None]
+        leg_nav = travel[e, r_ff] / tables.SKILL_SPEED[2] + s.capture_s
+        arr_nav = np.where(has_nav[:, None], depart + leg_nav, np.inf)
+        # greedy's prior: the rate of net points per robot second, both options
+        rates, hum_best = [], []
+        for arr_o, q_o, cost in ((arr_ff, q_auto, 0.0), (arr_nav, q_nav, s.human_time_cost
+                                                           * leg_nav)):
+            p_g, fin_g, _, _, _, _ = self._human_value(q_o, d, np.minimum(arr_o, 1e12),
+                                                        greedy=True)
+            delay = np.maximum(self.human_free[e][:, None, :] - t_ff[:, None, None], 0.0)
+            net = (tables.expected_points(self.points[..., None], p_g)
+                   - s.human_time_cost * (tables.T_BAR[q_o, d][..., None] + delay))
+            best = net.argmax(-1)
+            fin_best = np.take_along_axis(fin_g, best[..., None], -1)[..., 0]
+            hum_net = np.where(fin_best <= self.horizon,
+                               np.take_along_axis(net, best[..., None], -1)[..., 0], 0.0)
+            ev_on = tables.expected_points(self.points, tables.P_RC[q_o, d])
+            value = np.maximum(hum_net, ev_on) - cost
+            with np.errstate(invalid="ignore"):
+                rate = value / (arr_o - t_ff[:, None] + s.rate_offset_s)
+            rates.append(np.where(arr_o <= self.horizon, rate, -np.inf))
+            # the learned features: the best human with workload and fatigue projected
+            p_h, fin_h, _, _, _, _ = self._human_value(q_o, d, np.minimum(arr_o, 1e12),
+                                                       greedy=False)
+            ev_h = np.where(fin_h <= self.horizon,
+                            tables.expected_points(self.points[..., None], p_h), -np.inf)
+            hum_best.append(np.maximum(ev_h.max(-1), -35.0))
+        rate_ff = np.maximum(rates[0], rates[1])
+        prior = np.where(np.isfinite(rate_ff), rate_ff, -1.0)
+        # competition: how much sooner, and how much better onboard, another robot gets there
+        others = reach.copy()
+        others[e, r_ff] = False
+        other_arr = np.where(others, arr, np.inf).min(axis=1)
+        q_all = tables.QUALITY[self.start.robot_type[..., None], self.start.kind[:, None, :], 1]
+        ev_all = np.where(others, tables.expected_points(self.points[:, None, :],
+                                                         tables.P_RC[q_all, d[:, None, :]]),
+                          -35.0).max(axis=1)
+        hz = self.horizon
+        left_share = self.left.sum(1, keepdims=True) / max(P, 1)
+        prev_feats = np.zeros((E, P, 3))
+        if self.previous is not None:
+            prev_feats[..., 0] = self.previous.robot == r_ff[:, None]
+            prev_feats[..., 1] = self.prev_valid
+            prev_feats[..., 2] = self.previous.classifier >= 0
+        feats = np.concatenate([
+            np.stack([np.clip((arr_ff - self.now) / hz, 0, 2),
+                      np.clip((arr_nav - self.now) / hz, 0, 2),
+                      ev_auto / 35.0, ev_navq / 35.0, hum_best[0] / 35.0, hum_best[1] / 35.0,
+                      np.clip(np.where(np.isfinite(rates[0]), rates[0], -0.1) * 20, -2, 2),
+                      np.clip(np.where(np.isfinite(rates[1]), rates[1], -0.1) * 20, -2, 2),
+                      np.clip((other_arr - arr_ff) / hz, -2, 2),
+                      (ev_all - ev_auto) / 35.0,
+                      self.points / 35.0, self.start.kind.astype(float),
+                      self.start.diff / 2.0,
+                      np.broadcast_to(np.clip((hz - t_ff) / hz, 0, 1)[:, None], (E, P)),
+                      np.broadcast_to(left_share, (E, P))], -1),
+            prev_feats], -1)
+        return StepInputs(feats.astype(np.float32), mask, prior, active)
+
+    def robot_inputs(self, p: np.ndarray) -> StepInputs:
+        """Which robot for POI p: R robots (plus, when reallocating, 'keep its triple')."""
+        E, R, s, e = self.E, self.R, self.s, self.e
+        travel, arr = self._legs(e)
+        arr_p = arr[e, :, p]                                                # (E, R)
+        mask = ~self.robot_done & (arr_p <= self.horizon)
+        q = tables.QUALITY[self.start.robot_type, self.start.kind[e, p][:, None], 1]
+        d = self.start.diff[e, p][:, None]
+        ev = tables.expected_points(self.points[e, p][:, None], tables.P_RC[q, d])
+        is_ff = np.arange(R)[None, :] == self.r_ff[:, None]
+        hz = self.horizon
+        prev_r = np.zeros((E, R))
+        if self.previous is not None:
+            prev_r = (np.arange(R)[None, :] == self.previous.robot[e, p][:, None]).astype(float)
+        feats = np.concatenate([
+            np.stack([np.clip((arr_p - self.now) / hz, 0, 2),
+                      np.clip((np.where(self.robot_done, hz, self.robot_free) - self.now) / hz,
+                              0, 2),
+                      travel[e, :, p] / hz, ev / 35.0, is_ff.astype(float),
+                      self.n_assigned / max(self.P, 1), prev_r,
+                      self.start.robot_type.astype(float)], -1),
+            np.eye(4)[q]], -1)
+        prior = is_ff.astype(float)
+        if self.previous is not None:
+            keep_ok = self.prev_valid[e, p]
+            mask = np.concatenate([mask, keep_ok[:, None]], 1)
+            keep_feats = np.zeros((E, 1, feats.shape[-1]))
+            keep_feats[:, 0, 6] = 1.0
+            feats = np.concatenate([feats, keep_feats], 1)
+            # keep, where the robot still works, is preferred over any change: pi_TR with its
+            # learned part off repairs (re-decodes only the POIs of robots seen down)
+            prior = np.concatenate([prior, np.full((E, 1), 2.0)], 1)
+        return StepInputs(feats.astype(np.float32), mask, prior, mask.any(1))
+
+    def nav_inputs(self, p: np.ndarray, r: np.ndarray) -> StepInputs:
+        """Who drives robot r to POI p: autonomous, or one highly skilled human (index h + 1)."""
+        E, H, s, e = self.E, self.H, self.s, self.e
+        travel, _ = self._legs(e)
+        tr = travel[e, r, p]                                                 # (E,)
+        t_r = self.robot_free[e, r]
+        rtype = self.start.robot_type[e, r]
+        kind, d = self.start.kind[e, p], self.start.diff[e, p]
+        pts = self.points[e, p]
+        skill = np.concatenate([np.ones((E, 1), np.int64), self.start.skill], 1)  # auto: 1
+        speed_f = np.where(np.arange(H + 1)[None, :] == 0, 1.0, tables.SKILL_SPEED[skill])
+        leg = tr[:, None] / speed_f + s.capture_s
+        free = np.concatenate([t_r[:, None], np.maximum(t_r[:, None], self.human_free)], 1)
+        arrive = free + leg
+        q = tables.QUALITY[rtype[:, None], kind[:, None], skill]
+        ev_on = tables.expected_points(pts[:, None], tables.P_RC[q, d[:, None]])
+        # greedy's rate for each option (F_w = 1; the best human classifier at that quality)
+        p_g, fin_g, _, _, _, _ = self._human_value(q, np.broadcast_to(d[:, None], q.shape),
+                                                    arrive, greedy=True)
+        delay = np.maximum(self.human_free[:, None, :] - t_r[:, None, None], 0.0)
+        net = (tables.expected_points(pts[:, None, None], p_g)
+               - s.human_time_cost * (tables.T_BAR[q, d[:, None]][..., None] + delay))
+        best = net.argmax(-1)
+        hum_net = np.where(np.take_along_axis(fin_g, best[..., None], -1)[..., 0]
+                           <= self.horizon, np.take_along_axis(net, best[..., None], -1)[..., 0],
+                           0.0)
+        human = np.arange(H + 1)[None, :] > 0
+        value = np.maximum(hum_net, ev_on) - np.where(human, s.human_time_cost * leg, 0.0)
+        rate = value / (arrive - t_r[:, None] + s.rate_offset_s)
+        mask = np.concatenate([np.ones((E, 1), bool), self.high], 1) & (arrive <= self.horizon)
+        mask[:, 0] = True
+        hz = self.horizon
+        util = np.concatenate([np.zeros((E, 1)), np.diagonal(
+            self.utilisation_at(np.broadcast_to(free[:, 1:, None], (E, H, H))), 0, 1, 2)], 1)
+        prev_n = np.zeros((E, H + 1))
+        if self.previous is not None:
+            prev_n = (np.arange(H + 1)[None, :] == self.previous.navigator[e, p][:, None] + 1)
+        feats = np.concatenate([
+            np.stack([np.clip((arrive - self.now) / hz, 0, 2),
+                      np.clip((free - t_r[:, None]) / hz, 0, 2),
+                      np.where(human, leg / hz, 0.0), ev_on / 35.0,
+                      np.clip(rate * 20, -2, 2), util, prev_n.astype(float),
+                      human.astype(float) * np.ones((E, 1))], -1),
+            np.eye(4)[q]], -1)
+        return StepInputs(feats.astype(np.float32), mask, np.where(mask, rate, -1.0),
+                          np.ones(E, bool))
+
+    def cls_inputs(self, p: np.ndarray, r: np.ndarray, n: np.ndarray) -> StepInputs:
+        """Who classifies POI p's image: onboard (index 0) or a human (h + 1)."""
+        E, H, s, e = self.E, self.H, self.s, self.e
+        arrive, q = self._arrival(p, r, n)
+        d = self.start.diff[e, p]
+        pts = self.points[e, p]
+        # the navigator is busy until the capture: for it the item starts then at the earliest
+        p_h, fin, begin, u, f_w, f_f = (x[:, 0] for x in self._human_value(
+            q[:, None], d[:, None], arrive[:, None], greedy=False))
+        ev_h = np.where(fin <= self.horizon, tables.expected_points(pts[:, None], p_h), 0.0)
+        p_g, fin_g = (x[:, 0] for x in self._human_value(q[:, None], d[:, None],
+                                                          arrive[:, None], greedy=True)[:2])
+        delay = np.maximum(self.human_free - self.robot_free[e, r][:, None], 0.0)
+        t_bar = tables.T_BAR[q, d]
+        net_g = np.where(fin_g <= self.horizon, tables.expected_points(pts[:, None], p_g)
+                         - s.human_time_cost * (t_bar[:, None] + delay), 0.0)
+        p_on = tables.P_RC[q, d]
+        ev_on = tables.expected_points(pts, p_on)
+        hz = self.horizon
+        prev_c = np.zeros((E, H + 1))
+        rebrief = np.zeros((E, H))
+        if self.previous is not None:
+            prev_c = (np.arange(H + 1)[None, :] == self.previous.classifier[e, p][:, None] + 1)
+            moved = self.previous.classifier[e, p][:, None] != np.arange(H)[None, :]
+            rebrief = (moved & ~self.touched).astype(float) * (s.rebrief_s > 0)
+        human_feats = np.stack([ev_h / 35.0, p_h, np.clip((fin - self.now) / hz, 0, 2),
+                                np.clip((begin - arrive[:, None]) / hz, 0, 2), u, f_w, f_f,
+                                np.broadcast_to(t_bar[:, None] / hz, (E, H)), net_g / 35.0,
+                                rebrief, np.ones((E, H))], -1)
+        onboard = np.stack([ev_on / 35.0, p_on, np.clip((arrive - self.now) / hz, 0, 2),
+                            np.zeros(E), np.zeros(E), np.ones(E), np.ones(E), np.zeros(E),
+                            ev_on / 35.0, np.zeros(E), np.zeros(E)], -1)[:, None, :]
+        feats = np.concatenate([np.concatenate([onboard, human_feats], 1),
+                                prev_c[..., None].astype(float),
+                                np.broadcast_to(np.eye(4)[q][:, None, :2], (E, H + 1, 2))], -1)
+        prior = np.concatenate([ev_on[:, None], net_g], 1)
+        mask = np.ones((E, H + 1), bool)
+        return StepInputs(feats.astype(np.float32), mask, prior, np.ones(E, bool))
+
+    def _arrival(self, p: np.ndarray, r: np.ndarray, n: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """Capture time and image quality of robot r at POI p with navigator n (-1 auto)."""
+        e, s = self.e, self.s
+        gx = self.tx[e, p] - self.robot_xy[e, r, 0]
+        gy = self.ty[e, p] - self.robot_xy[e, r, 1]
+        dist = np.sqrt(gx * gx + gy * gy)
+        nav_h = np.maximum(n, 0)
+        cls_ = np.where(n >= 0, self.start.skill[e, nav_h], 1)
+        v = self.start.speed[e, r] * np.where(n >= 0, tables.SKILL_SPEED[cls_], 1.0)
+        depart = np.where(n >= 0, np.maximum(self.robot_free[e, r], self.human_free[e, nav_h]),
+                          self.robot_free[e, r])
+        q = tables.QUALITY[self.start.robot_type[e, r], self.start.kind[e, p], cls_]
+        return depart + dist / np.maximum(v, 1e-9) + s.capture_s, q
+
+    # -- commit ----------------------------------------------------------------------------------
+    def commit(self, active: np.ndarray, p: np.ndarray, r: np.ndarray, n: np.ndarray,
+               c: np.ndarray) -> None:
+        """Give POI p (robot r, navigator n, classifier c; -1 auto / onboard) in the active
+        episodes, and update the members' projected state."""
+        s = self.s
+        e = self.e[active]
+        p, r, n, c = p[active], r[active], n[active], c[active]
+        if e.size == 0:
+            return
+        if self.previous is not None and s.rebrief_s > 0:
+            self._charge(e, p, n, c)
+        arrive, q = self._arrival_at(e, p, r, n)
+        depart_nav = arrive - self._leg(e, p, r, n)
+        nb = n >= 0
+        if nb.any():
+            self._book(e[nb], n[nb], depart_nav[nb], arrive[nb])
+        cb = c >= 0
+        if cb.any():
+            ce, ch = e[cb], c[cb]
+            begin = np.maximum(arrive[cb], self.human_free[ce, ch])
+            self._book(ce, ch, begin, begin + tables.T_BAR[q[cb], self.start.diff[ce, p[cb]]])
+        self.robot_free[e, r] = arrive
+        self.robot_xy[e, r] = self.start.task_xy[e, p]
+        self.n_assigned[e, r] += 1
+        self.robot[e, p], self.nav[e, p], self.cls[e, p] = r, n, c
+        self.left[e, p] = False
+        self.steps += 1
+        self._cache = None
+
+    def _leg(self, e, p, r, n) -> np.ndarray:
+        gx = self.tx[e, p] - self.robot_xy[e, r, 0]
+        gy = self.ty[e, p] - self.robot_xy[e, r, 1]
+        nav_h = np.maximum(n, 0)
+        cls_ = np.where(n >= 0, self.start.skill[e, nav_h], 1)
+        v = self.start.speed[e, r] * np.where(n >= 0, tables.SKILL_SPEED[cls_], 1.0)
+        return np.sqrt(gx * gx + gy * gy) / np.maximum(v, 1e-9) + self.s.capture_s
+
+    def _arrival_at(self, e, p, r, n) -> tuple[np.ndarray, np.ndarray]:
+        nav_h = np.maximum(n, 0)
+        cls_ = np.where(n >= 0, self.start.skill[e, nav_h], 1)
+        depart = np.where(n >= 0, np.maximum(self.robot_free[e, r], self.human_free[e, nav_h]),
+                          self.robot_free[e, r])
+        q = tables.QUALITY[self.start.robot_type[e, r], self.start.kind[e, p], cls_]
+        return depart + self._leg(e, p, r, n), q
+
+    def _charge(self, e, p, n, c) -> None:
+        """Re-brief (in the projection) every human this choice first changes the work of."""
+        prev = self.previous
+        for old, new in ((prev.navigator[e, p], n), (prev.classifier[e, p], c)):
+            moved = old != new
+            for who in (old, new):
+                hit = moved & (who >= 0)
+                he, hh = e[hit], who[hit]
+                fresh = ~self.touched[he, hh]
+                he, hh = he[fresh], hh[fresh]
+                if he.size:
+                    a = np.maximum(self.human_free[he, hh], self.now)
+                    self.touched[he, hh] = True
+                    self._book(he, hh, a, a + self.s.rebrief_s)
+
+    def finish(self) -> Allocation:
+        """The allocation: POIs nobody could reach go, as greedy's leftovers do, to the robot
+        whose plan ends first, autonomous and onboard."""
+        left = self.left
+        if left.any():
+            lb, lp = np.nonzero(left)
+            free = np.where(self.robot_done, np.inf, self.robot_free)
+            fallback = np.where(np.isfinite(free).any(1), free.argmin(1), 0)
+            keep = self.prev_valid[lb, lp] if self.previous is not None else np.zeros(lb.size,
+                                                                                      bool)
+            self.robot[lb, lp] = np.where(keep, self.robot[lb, lp], fallback[lb])
+            self.nav[lb, lp] = np.where(keep, self.nav[lb, lp], -1)
+            self.cls[lb, lp] = np.where(keep, self.cls[lb, lp], -1)
+        return Allocation(self.robot.copy(), self.nav.copy(), self.cls.copy())

@@ -1,0 +1,64 @@
+"""Observations to the inputs of ATA-HRL's networks and decoder.
+
+Encoder tokens: the inherent information I (humans: eta, lambda, skill one-hot; robots: UAV, UGV,
+speed / 8; tasks: x, y, kind, difficulty one-hot, points / 35) and, when reallocating, the state S
+as the policy sees it (humans: working hours / 3, fatigue, idleness, SA; robots: x, y, idleness,
+working, has a target; tasks: unvisited, captured, classified, kind, difficulty one-hot).
+
+"As the policy sees it": the raw observed S, or, where the mission's reconstructors give them,
+their estimates (the ``aux`` reconstructor's fatigue, robot and task rows). The w/o.AUX ablation
+is the same code reading the raw S.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from ata.core.state import DecisionContext, Observation
+
+GROUPS = ("humans", "robots", "tasks")
+
+
+def onehot3(x: np.ndarray) -> np.ndarray:
+    return np.eye(3)[np.clip(np.rint(x).astype(np.int64), 0, 2)]
+
+
+def inherent_features(I: Observation) -> dict[str, np.ndarray]:
+    h, r, t = I["humans"], I["robots"], I["tasks"]
+    return {
+        "humans": np.concatenate([np.stack([h.col("cognitive"), h.col("expertise")], -1),
+                                  onehot3(h.col("skill"))], -1),
+        "robots": np.stack([r.col("uav"), r.col("ugv"), r.col("speed") / 8.0], -1),
+        "tasks": np.concatenate([np.stack([t.col("x"), t.col("y"), t.col("kind")], -1),
+                                 onehot3(t.col("difficulty")),
+                                 (t.col("points") / 35.0)[..., None]], -1),
+    }
+
+
+def state_features(S: Observation, fatigue: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """S as features; `fatigue` (B, H) replaces the observed fatigue column when given."""
+    h, r, t = S["humans"], S["robots"], S["tasks"]
+    f = h.col("fatigue") if fatigue is None else fatigue
+    return {
+        "humans": np.stack([h.col("working_time") / 3.0, f, h.col("idleness"), h.col("sa")], -1),
+        "robots": np.stack([r.col("x"), r.col("y"), r.col("idleness"), r.col("working"),
+                            (r.col("target") >= 0).astype(float)], -1),
+        "tasks": np.concatenate([np.stack([t.col("unvisited"), t.col("captured"),
+                                           t.col("classified"), t.col("kind")], -1),
+                                 onehot3(t.col("difficulty"))], -1),
+    }
+
+
+def seen_state(ctx: DecisionContext) -> dict[str, np.ndarray]:
+    """S as the policy sees it: the reconstructors' estimates where present, else the raw S."""
+    rec = ctx.reconstructed
+    feats = state_features(ctx.observed, fatigue=rec.get("aux_fatigue"))
+    for group in ("robots", "tasks"):
+        if f"aux_{group}" in rec:
+            feats[group] = rec[f"aux_{group}"]
+    return feats
+
+
+def to_tensors(feats: dict[str, np.ndarray]) -> dict[str, torch.Tensor]:
+    return {k: torch.as_tensor(v, dtype=torch.float32) for k, v in feats.items()}

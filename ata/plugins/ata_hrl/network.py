@@ -1,0 +1,239 @@
+"""The networks of ATA-HRL: an attention encoder over the team and the POIs, and the scorers of
+the capacity-aware decoder (POI, robot, navigator, classifier), each a learned residual on top
+of the greedy heuristic's score.
+
+Encoder (the paper's ITA network): per member type an embedding of its inherent features (and,
+when reallocating, of its observed or reconstructed state), plus a type embedding and a
+positional embedding, then self-attention over all humans, robots and POIs together.
+
+Scorer of one sub-decision: for each candidate, a two-layer perceptron of the decoder's features
+for that candidate, the candidate's embedding and the embeddings of the choices made before it
+in this step, plus ``scale * prior`` where ``prior`` is greedy's score and ``scale`` a learned
+positive number. The perceptron's last layer starts at zero, so an untrained network decodes as
+the prior does; ``residual = False`` switches the learned part off.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import torch
+from torch import nn
+
+from ata.plugins.ata_hrl.decoder import (CLS_FEATURES, NAV_FEATURES, POI_FEATURES,
+                                         ROBOT_FEATURES)
+
+NEG = -1e9
+GROUPS = ("humans", "robots", "tasks")
+I_DIMS = {"humans": 5, "robots": 3, "tasks": 7}
+S_DIMS = {"humans": 4, "robots": 5, "tasks": 7}
+KINDS = ("poi", "robot", "nav", "cls")
+FEATURES = {"poi": POI_FEATURES, "robot": ROBOT_FEATURES, "nav": NAV_FEATURES,
+            "cls": CLS_FEATURES}
+PRIOR_SCALE = {"poi": 750.0, "robot": 6.0, "nav": 750.0, "cls": 1.5}
+"""Initial prior scales: sampled from the prior alone, decisions stay close to greedy's."""
+
+
+@dataclass
+class NetConfig:
+    """The architecture; a checkpoint records it."""
+
+    d_model: int = 32
+    heads: int = 4
+    layers: int = 2
+    hidden: int = 64
+    z_dim: int = 4
+    recon_hidden: int = 32
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def sinusoid(n: int, d: int) -> torch.Tensor:
+    """Positional embeddings for indices 0..n-1 (any team size)."""
+    pos = torch.arange(n, dtype=torch.float32)[:, None]
+    i = torch.arange(0, d, 2, dtype=torch.float32)
+    angle = pos / torch.pow(10000.0, i / d)
+    out = torch.zeros(n, d)
+    out[:, 0::2] = torch.sin(angle)
+    out[:, 1::2] = torch.cos(angle[:, : d // 2])
+    return out
+
+
+class Encoder(nn.Module):
+    """Embeddings per member type (inherent features, plus state features when given), a type
+    and a positional embedding, then self-attention over every token."""
+
+    def __init__(self, cfg: NetConfig, with_state: bool):
+        super().__init__()
+        d = cfg.d_model
+        dims = {g: I_DIMS[g] + (S_DIMS[g] if with_state else 0) for g in GROUPS}
+        self.lin = nn.ModuleDict({g: nn.Linear(dims[g], d) for g in GROUPS})
+        self.type_emb = nn.Embedding(len(GROUPS), d)
+        layer = nn.TransformerEncoderLayer(d, cfg.heads, 2 * d, dropout=0.0, batch_first=True)
+        self.net = nn.TransformerEncoder(layer, cfg.layers, enable_nested_tensor=False)
+        self.d = d
+
+    def forward(self, feats: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        tokens = []
+        for i, g in enumerate(GROUPS):
+            x = feats[g]
+            tokens.append(self.lin[g](x) + self.type_emb.weight[i] + sinusoid(x.shape[1], self.d))
+        sizes = [t.shape[1] for t in tokens]
+        out = self.net(torch.cat(tokens, 1))
+        return dict(zip(GROUPS, torch.split(out, sizes, dim=1)))
+
+
+class StepScorer(nn.Module):
+    """Logits of one sub-decision: MLP(features, candidate, context) + scale * prior."""
+
+    def __init__(self, kind: str, cfg: NetConfig):
+        super().__init__()
+        h, d = cfg.hidden, cfg.d_model
+        self.feat = nn.Linear(FEATURES[kind], h)
+        self.cand = nn.Linear(d, h, bias=False)
+        self.ctx = nn.Linear(d, h, bias=False)
+        self.out = nn.Sequential(nn.ReLU(), nn.Linear(h, h), nn.ReLU(), nn.Linear(h, 1))
+        self.linear = nn.Linear(FEATURES[kind], 1)     # a direct path from the features
+        for layer in (self.out[-1], self.linear):
+            nn.init.zeros_(layer.weight)
+            nn.init.zeros_(layer.bias)
+        self.log_scale = nn.Parameter(torch.tensor(math.log(PRIOR_SCALE[kind])))
+
+    def forward(self, feats: torch.Tensor, cand: torch.Tensor, ctx: torch.Tensor,
+                prior: torch.Tensor, mask: torch.Tensor, residual: bool = True) -> torch.Tensor:
+        """feats (..., N, F), cand (..., N, d), ctx (..., d), prior and mask (..., N)."""
+        logit = self.log_scale.exp() * prior
+        if residual:
+            hid = self.feat(feats) + self.cand(cand) + self.ctx(ctx)[..., None, :]
+            logit = logit + self.out(hid)[..., 0] + self.linear(feats)[..., 0]
+        return logit.masked_fill(~mask, NEG)
+
+
+class AllocationNet(nn.Module):
+    """The encoder and the four scorers of one allocation policy (ITA or pi_TR)."""
+
+    def __init__(self, cfg: NetConfig, with_state: bool):
+        super().__init__()
+        d = cfg.d_model
+        self.encoder = Encoder(cfg, with_state)
+        self.scorers = nn.ModuleDict({k: StepScorer(k, cfg) for k in KINDS})
+        self.auto = nn.Parameter(torch.zeros(d))      # the 'autonomous' navigator's token
+        self.onboard = nn.Parameter(torch.zeros(d))   # the 'onboard' classifier's token
+        self.keep = nn.Parameter(torch.zeros(d))      # 'keep the triple' (reallocation)
+
+    def candidates(self, kind: str, emb: dict[str, torch.Tensor]) -> torch.Tensor:
+        """Candidate tokens (B, N, d) of a sub-decision."""
+        B = emb["tasks"].shape[0]
+        if kind == "poi":
+            return emb["tasks"]
+        if kind == "robot":
+            return torch.cat([emb["robots"], self.keep.expand(B, 1, -1)], 1)
+        first = self.auto if kind == "nav" else self.onboard
+        return torch.cat([first.expand(B, 1, -1), emb["humans"]], 1)
+
+
+def gather_rows(x: torch.Tensor, idx: torch.Tensor) -> torch.Tensor:
+    """x (B, N, d), idx (..., B) -> (..., B, d): row idx[..., b] of x[b]."""
+    B = x.shape[0]
+    flat = idx.reshape(-1, B)
+    out = x[torch.arange(B)[None, :], flat.clamp(min=0)]
+    return out.reshape(*idx.shape, x.shape[-1])
+
+
+def step_context(kind: str, emb: dict[str, torch.Tensor], ctx_idx: dict[str, torch.Tensor]
+                 ) -> torch.Tensor:
+    """The context token of a sub-decision: the robot free first (POI step); the POI chosen
+    (robot step); the POI and robot chosen (navigator, classifier steps)."""
+    if kind == "poi":
+        return gather_rows(emb["robots"], ctx_idx["robot"])
+    if kind == "robot":
+        return gather_rows(emb["tasks"], ctx_idx["task"])
+    return gather_rows(emb["tasks"], ctx_idx["task"]) + gather_rows(emb["robots"],
+                                                                    ctx_idx["robot"])
+
+
+COND_FEATURES = 10
+"""Inputs of pi_C beside the pooled state embedding (ata.plugins.ata_hrl.components)."""
+
+
+class ConditionNet(nn.Module):
+    """pi_C: a GRU over the epochs, reading the pooled state embedding and the condition
+    features; its logit is a learned residual on the event prior (+1 when the observation shows
+    a new robot failure or attribute change, -1 otherwise)."""
+
+    def __init__(self, cfg: NetConfig):
+        super().__init__()
+        d, h = cfg.d_model, cfg.hidden
+        self.gru = nn.GRUCell(d + COND_FEATURES, d)
+        self.head = nn.Sequential(nn.Linear(d + COND_FEATURES, h), nn.ReLU(), nn.Linear(h, 1))
+        nn.init.zeros_(self.head[-1].weight)
+        nn.init.zeros_(self.head[-1].bias)
+        self.log_scale = nn.Parameter(torch.tensor(math.log(3.0)))
+
+    def forward(self, pooled: torch.Tensor, feats: torch.Tensor, prior: torch.Tensor,
+                hidden: torch.Tensor, residual: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
+        x = torch.cat([pooled, feats], -1)
+        hidden = self.gru(x, hidden)
+        logit = self.log_scale.exp() * prior
+        if residual:
+            logit = logit + self.head(torch.cat([hidden, feats], -1))[..., 0]
+        return logit, hidden
+
+
+class FatigueCVAE(nn.Module):
+    """Conditional VAE: encodes the observed fatigue with its conditions (working hours,
+    cognitive ability) and decodes a fatigue estimate from the latent and the conditions."""
+
+    def __init__(self, cfg: NetConfig):
+        super().__init__()
+        h = cfg.recon_hidden
+        self.enc = nn.Sequential(nn.Linear(3, h), nn.ReLU(), nn.Linear(h, 2 * cfg.z_dim))
+        self.dec = nn.Sequential(nn.Linear(cfg.z_dim + 2, h), nn.ReLU(), nn.Linear(h, 1))
+
+    def forward(self, fatigue_obs: torch.Tensor, hours: torch.Tensor, cognitive: torch.Tensor,
+                sample: bool = False) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        cond = torch.stack([hours, cognitive], -1)
+        mu, logvar = self.enc(torch.cat([fatigue_obs[..., None], cond], -1)).chunk(2, -1)
+        z = mu + torch.randn_like(mu) * torch.exp(0.5 * logvar) if sample else mu
+        return self.dec(torch.cat([z, cond], -1))[..., 0], mu, logvar
+
+    @staticmethod
+    def loss(recon: torch.Tensor, target: torch.Tensor, mu: torch.Tensor,
+             logvar: torch.Tensor) -> torch.Tensor:
+        """||x - x_hat||^2 + 0.1 KL (the paper's L_cVAE), averaged over humans."""
+        kl = -0.5 * (1 + logvar - mu.pow(2) - logvar.exp()).sum(-1)
+        return ((recon - target) ** 2 + 0.1 * kl).mean()
+
+
+class LatencyGRU(nn.Module):
+    """Three stacked GRUs and a feed-forward layer: from an entity's sequence of observed rows,
+    its current true row."""
+
+    def __init__(self, features: int, cfg: NetConfig):
+        super().__init__()
+        self.gru = nn.GRU(features, cfg.recon_hidden, num_layers=3, batch_first=True)
+        self.ff = nn.Linear(cfg.recon_hidden, features)
+
+    def forward(self, seq: torch.Tensor, hidden: torch.Tensor | None = None
+                ) -> tuple[torch.Tensor, torch.Tensor]:
+        """seq (N, T, F) -> (N, T, F) estimates (residual on the observed row), hidden."""
+        out, hidden = self.gru(seq, hidden)
+        return seq + self.ff(out), hidden
+
+
+class ATAHRLNet(nn.Module):
+    """Every learned part of ATA-HRL in one module, so one checkpoint holds them: the ITA
+    policy, pi_C, pi_TR, and the auxiliary reconstruction."""
+
+    def __init__(self, cfg: NetConfig | None = None):
+        super().__init__()
+        self.cfg = cfg or NetConfig()
+        self.ita = AllocationNet(self.cfg, with_state=False)
+        self.tr = AllocationNet(self.cfg, with_state=True)
+        self.cond = ConditionNet(self.cfg)
+        self.fatigue = FatigueCVAE(self.cfg)
+        self.latency = nn.ModuleDict({"robots": LatencyGRU(S_DIMS["robots"], self.cfg),
+                                      "tasks": LatencyGRU(S_DIMS["tasks"], self.cfg)})

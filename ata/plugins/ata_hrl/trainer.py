@@ -1,0 +1,533 @@
+"""The trainer ``ata_hrl``: trains the ATA-HRL components a training mission's slots hold.
+
+Which parts it trains follows the slots, not names: the ITA policy if the initial slot holds the
+``attention`` component, pi_C if the condition slot holds ``ctr``, pi_TR if the reallocation
+slot does, the reconstruction if the reconstructors include ``aux``. So the ablations are the
+run-time swaps: ``reconstructors = ["identity"]`` trains w/o.AUX, ``condition = "always"`` trains
+w/o.C, and an initial-only mission trains the attention ITA alone (AtRL-TR's first stage).
+
+Phases, each with its own step counter (a killed run resumes inside any of them):
+
+1. **aux**: roll out the greedy teacher, log the observed and the true states, fit the cVAE
+   (reconstruction + 0.1 KL) and the stacked GRUs (MSE against the true rows), supervised.
+2. **ita**: the ITA policy alone (no reallocation during this phase). Each step samples
+   ``samples`` allocations of each of ``batch_size`` scenarios on common random numbers, runs
+   them, and takes the advantage of each sample against the mean of its scenario's samples (a
+   shared per-scenario baseline, zero-sum per scenario) on R_ITA; plus an optional pull towards
+   each scenario's best sample (self-imitation) and an entropy bonus.
+3. **ctr**: pi_C and pi_TR after the ITA, frozen and decoding by its mode, in the same way on
+   R_C (pi_C) and R_TR (pi_TR).
+
+The rewards use the expected points of each classification (``reward = "expected"``, the
+default; ``"realised"`` for the drawn outcomes), which removes the outcome draws' noise.
+``best.pt`` follows the held-out evaluation (mean total team performance, decisions by their
+mode, on validation scenarios of seed ``seed + 1_000_003``). Checkpoints load with
+``torch.load(..., weights_only=True)`` and hold everything needed to resume.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+
+from ata.core.errors import MissionError
+from ata.core.kernel import Simulation, build_component
+from ata.core.settings import param
+from ata.plugins.ata_hrl import decode as D
+from ata.plugins.ata_hrl.checkpoint import (FORMAT, KIND, CheckpointError, net_from_checkpoint,
+                                            read_checkpoint)
+from ata.plugins.ata_hrl.components import (AttentionITA, AuxReconstructor, CTRPolicy,
+                                            Recorder, encoder_input)
+from ata.plugins.ata_hrl.features import inherent_features, state_features, to_tensors
+from ata.plugins.ata_hrl.network import ATAHRLNet, FatigueCVAE, NetConfig
+from ata.plugins.ata_hrl.rewards import hierarchical_rewards
+from ata.training import TrainRun
+
+EVAL_SEED_OFFSET = 1_000_003
+"""Held-out validation during training uses root seed ``seed`` + this."""
+PHASE_BASE = {"aux": 0, "ita": 10_000_000, "ctr": 20_000_000}
+"""First scenario id of each phase's range (root seed ``seed``)."""
+PHASE_SPAN = 10_000_000
+LOG_FIELDS = ["phase", "step", "setting", "episodes", "episodes_per_s", "loss", "mean_score",
+              "R_ITA", "R_C", "R_TR", "reallocations", "eval_score", "eval_expected",
+              "aux_fatigue_mse", "aux_latency_mse", "wall_s"]
+
+
+class ATAHRLTrainer:
+    """Trains ATA-HRL's components (see the module's doc)."""
+
+    log_fields = LOG_FIELDS
+
+    @dataclass
+    class Settings:
+        seed: int = param(12345, min=0, max=2**40, help="root seed of the training scenarios "
+                          "(validation uses seed + 1000003)")
+        team_settings: list[str] = param(["a"], choices=("a", "b"), help="team settings "
+                                         "trained on, in turn (a mixture when several)")
+        batch_size: int = param(16, min=1, max=4096, help="scenarios per step")
+        samples: int = param(8, min=2, max=256, help="samples of each scenario per step (the "
+                             "shared baseline is their mean)")
+        ita_steps: int = param(300, min=0, help="steps of the ITA phase")
+        ctr_steps: int = param(200, min=0, help="steps of the pi_C / pi_TR phase")
+        lr: float = param(1e-3, min=0.0, max=1.0, help="Adam learning rate of the policies")
+        entropy: float = param(0.0, min=0.0, help="entropy bonus weight (per decision)")
+        self_imitation: float = param(0.0, min=0.0, help="weight of the pull towards each "
+                                      "scenario's best sample (per decision)")
+        grad_clip: float = param(1.0, min=0.0, help="gradient norm clip (0: none)")
+        reward: str = param("expected", choices=("expected", "realised"),
+                            help="points of a classification: expected given how it was made, "
+                                 "or as drawn")
+        aux_batches: int = param(6, min=1, help="teacher rollouts (of batch_size scenarios) "
+                                 "for the reconstruction data")
+        aux_steps: int = param(400, min=0, help="supervised steps of the reconstructors")
+        aux_lr: float = param(3e-3, min=0.0, max=1.0, help="Adam learning rate of the "
+                              "reconstructors")
+        eval_every: int = param(25, min=1, help="held-out validation every N steps")
+        eval_scenarios: int = param(64, min=1, help="validation scenarios per team setting")
+        checkpoint_every: int = param(10, min=1, help="write checkpoint.pt every N steps")
+        d_model: int = param(32, min=8, help="embedding width")
+        heads: int = param(4, min=1, help="attention heads")
+        layers: int = param(2, min=1, help="attention layers")
+        hidden: int = param(64, min=4, help="width of the scorers")
+        z_dim: int = param(4, min=1, help="cVAE latent size")
+        recon_hidden: int = param(32, min=4, help="width of the reconstruction networks")
+        threads: int = param(1, min=1, max=256, help="torch CPU threads")
+
+    def __init__(self, settings: "ATAHRLTrainer.Settings", mission: Any, registry: Any):
+        self.s = settings
+        self.mission = mission
+        self.registry = registry
+        slots = mission.slots
+        factory = {slot: registry.get(kind, getattr(slots, slot), "[components]").factory
+                   for slot, kind in (("initial", "policy"), ("condition", "condition"),
+                                      ("reallocation", "policy"))}
+        self.trains_ita = _is(factory["initial"], AttentionITA)
+        self.trains_cond = _is(factory["condition"], CTRPolicy)
+        self.trains_tr = _is(factory["reallocation"], CTRPolicy)
+        self.trains_aux = any(_is(registry.get("reconstructor", n, "").factory,
+                                  AuxReconstructor) for n in slots.reconstructors)
+        if not (self.trains_ita or self.trains_cond or self.trains_tr):
+            raise MissionError("[components]", "initial", "trainer 'ata_hrl' has nothing to "
+                               "train: put 'attention' in the initial slot or 'ctr' in the "
+                               "condition or reallocation slot", file=mission.source)
+        self.cfg = NetConfig(d_model=settings.d_model, heads=settings.heads,
+                             layers=settings.layers, hidden=settings.hidden,
+                             z_dim=settings.z_dim, recon_hidden=settings.recon_hidden)
+        torch.manual_seed(settings.seed)
+        self.net = ATAHRLNet(self.cfg)
+        policy_params = [p for n, p in self.net.named_parameters()
+                         if not n.startswith(("fatigue.", "latency."))]
+        self.opt = torch.optim.Adam(policy_params, lr=settings.lr)
+        self.aux_opt = torch.optim.Adam(list(self.net.fatigue.parameters())
+                                        + list(self.net.latency.parameters()),
+                                        lr=settings.aux_lr)
+        self.gen = torch.Generator().manual_seed(settings.seed + 1)
+        self.counters = {"aux": 0, "ita": 0, "ctr": 0, "episodes": 0}
+        self.best_eval = -math.inf
+        self.wall = 0.0
+        self.run_folder: TrainRun | None = None
+
+    # -- the trainer interface ------------------------------------------------------------------
+    def scenario_ranges(self) -> list[tuple[int, int, int]]:
+        s = self.s
+        per_step = s.batch_size
+        ranges = [(s.seed, PHASE_BASE[p], PHASE_BASE[p] + PHASE_SPAN) for p in PHASE_BASE]
+        steps = {"aux": s.aux_batches + 1, "ita": s.ita_steps, "ctr": s.ctr_steps}
+        for phase, n in steps.items():
+            if n * per_step > PHASE_SPAN:
+                raise MissionError(f"[{self.name}]", "batch_size", f"{phase}: {n} steps of "
+                                   f"{per_step} scenarios overrun its range of {PHASE_SPAN} ids")
+        return ranges + [(s.seed + EVAL_SEED_OFFSET, 0, s.eval_scenarios)]
+
+    @property
+    def name(self) -> str:
+        return getattr(self, "component_name", "ata_hrl")
+
+    def phases(self) -> dict[str, int]:
+        s = self.s
+        return {"aux": s.aux_steps if self.trains_aux else 0,
+                "ita": s.ita_steps if self.trains_ita else 0,
+                "ctr": s.ctr_steps if (self.trains_cond or self.trains_tr) else 0}
+
+    def total_steps(self) -> int:
+        return sum(self.phases().values())
+
+    def done_steps(self) -> int:
+        return sum(self.counters[k] for k in ("aux", "ita", "ctr"))
+
+    def run(self, run: TrainRun, resume: bool = False) -> dict[str, Any]:
+        """Every phase, resuming wherever the counters stand."""
+        self.run_folder = run
+        torch.set_num_threads(self.s.threads)
+        if resume:
+            self.load(run.checkpoint_path)
+        report = self.train_aux()
+        self.train_policy("ita")
+        self.train_policy("ctr")
+        if not run.best_path.exists():
+            self.save("best.pt")
+        return {"aux": report, "best_eval": self.best_eval, "wall_s": self.wall,
+                "counters": dict(self.counters), "best": str(run.best_path)}
+
+    # -- checkpoints ------------------------------------------------------------------------------
+    def checkpoint(self) -> dict[str, Any]:
+        return {"kind": KIND, "format": FORMAT, "model": self.net.state_dict(),
+                "config": self.cfg.as_dict(), "optimizer": self.opt.state_dict(),
+                "aux_optimizer": self.aux_opt.state_dict(),
+                "rng": {"torch": torch.get_rng_state(), "sampler": self.gen.get_state()},
+                "counters": dict(self.counters), "best_eval": float(self.best_eval),
+                "wall_s": float(self.wall), "mission": self.mission.to_toml(),
+                "trainer": self.name,
+                "scenario_ranges": [list(r) for r in self.scenario_ranges()],
+                "trained": [k for k, v in (("ita", self.trains_ita), ("cond", self.trains_cond),
+                                           ("tr", self.trains_tr), ("aux", self.trains_aux))
+                            if v]}
+
+    def save(self, name: str = "checkpoint.pt") -> None:
+        self.run_folder.save(self.checkpoint(), name)
+
+    def load(self, path) -> None:
+        data = read_checkpoint(path, KIND)
+        net = net_from_checkpoint(data, path, expect=self.cfg)
+        self.net.load_state_dict(net.state_dict())
+        try:
+            self.opt.load_state_dict(data["optimizer"])
+            self.aux_opt.load_state_dict(data["aux_optimizer"])
+            torch.set_rng_state(data["rng"]["torch"])
+            self.gen.set_state(data["rng"]["sampler"])
+            self.counters.update({k: int(v) for k, v in data["counters"].items()})
+        except (KeyError, ValueError, RuntimeError, TypeError) as exc:
+            raise CheckpointError(path, f"cannot resume from it ({exc})") from None
+        self.best_eval = float(data.get("best_eval", -math.inf))
+        self.wall = float(data.get("wall_s", 0.0))
+
+    # -- missions and components ---------------------------------------------------------------
+    def _mission(self, setting: str, seed: int):
+        m = self.mission
+        if setting != m.settings.setting and m.settings.setting != "custom":
+            from ata.core.mission import TEAM_SETTINGS
+            sz = TEAM_SETTINGS[setting]
+            m = m.replace(setting=setting, humans=sz.humans, robots=sz.robots, tasks=sz.tasks)
+        return m.replace(seed=seed)
+
+    def _setting(self, step: int) -> str:
+        ts = self.s.team_settings
+        return ts[step % len(ts)]
+
+    def _component(self, mission, slot_kind: str, name: str) -> Any:
+        info = self.registry.get(slot_kind, name, "[components]")
+        settings = mission.component_settings.get(name)
+        if issubclass(info.factory, (AttentionITA, CTRPolicy)):
+            return info.factory(settings, mission, net=self.net)
+        if issubclass(info.factory, AuxReconstructor):
+            return info.factory(settings, mission, net=self.net)
+        return build_component(self.registry, mission, slot_kind, name)
+
+    def _overrides(self, mission, phase: str, recorder: Recorder | None,
+                   sampler: D.Chooser | None) -> dict[str, Any]:
+        """The slots' components for a rollout: the live network in every ATA-HRL part; the
+        part(s) the phase trains sample and record; the ITA phase never reallocates."""
+        slots = mission.slots
+        out: dict[str, Any] = {}
+        initial = self._component(mission, "policy", slots.initial)
+        out["initial"] = initial
+        if phase == "ita":
+            if recorder is not None:
+                initial.train_with(self.net, recorder, sampler)
+            out["condition"] = build_component(self.registry, mission, "condition", "never")
+            out["reallocation"] = initial if isinstance(initial, AttentionITA) else \
+                self._component(mission, "policy", slots.reallocation)
+        else:
+            ctr = None
+            if self.trains_cond or self.trains_tr:
+                ctr = self._component(mission, "policy", slots.reallocation
+                                      if self.trains_tr else slots.condition)
+                if recorder is not None:
+                    ctr.train_with(self.net, recorder, sampler)
+            out["condition"] = ctr if self.trains_cond else \
+                self._component(mission, "condition", slots.condition)
+            out["reallocation"] = ctr if self.trains_tr else \
+                self._component(mission, "policy", slots.reallocation)
+        if self.trains_aux:
+            out["reconstructors"] = AuxReconstructor(None, mission, net=self.net)
+        return out
+
+    def rollout(self, mission, ids: np.ndarray, phase: str, train: bool):
+        recorder = Recorder() if train else None
+        sampler = D.torch_sampler(self.gen) if train else None
+        overrides = self._overrides(mission, phase, recorder, sampler)
+        record = Simulation(mission, self.registry, ids, overrides=overrides).run()
+        return record, recorder
+
+    def _ids(self, phase: str, step: int) -> np.ndarray:
+        s = self.s
+        return PHASE_BASE[phase] + step * s.batch_size + np.arange(s.batch_size)
+
+    # -- held-out validation -------------------------------------------------------------------
+    def evaluate(self, phase: str) -> tuple[float, float]:
+        """(mean total team performance, its expectation) on the validation scenarios of every
+        team setting trained on, each decision by its mode."""
+        totals, expected = [], []
+        for setting in self.s.team_settings:
+            mission = self._mission(setting, self.s.seed + EVAL_SEED_OFFSET)
+            with torch.no_grad():
+                record, _ = self.rollout(mission, np.arange(self.s.eval_scenarios),
+                                         phase if phase == "ita" else "ctr", train=False)
+            totals.append(record.total.mean())
+            expected.append(record.r_expected.sum(1).mean())
+        return float(np.mean(totals)), float(np.mean(expected))
+
+    # -- phase 1: auxiliary reconstruction ---------------------------------------------------------
+    def teacher_log(self, mission, ids: np.ndarray) -> dict[str, list]:
+        """Roll out the greedy teacher (greedy initial allocation, greedy reallocation on
+        events) and log the observed and the true S of every epoch."""
+        from ata import hookimpl
+
+        log = {"raw": [], "true": [], "fatigue": [], "cognitive": None}
+        greedy = build_component(self.registry, mission, "policy", "greedy")
+        on_event = build_component(self.registry, mission, "condition", "on_event")
+
+        class Teacher:
+            @hookimpl
+            def ata_initial_allocation(self, ctx):
+                log["cognitive"] = ctx.inherent["humans"].col("cognitive").copy()
+                self._log(ctx)
+                return greedy.ata_initial_allocation(ctx)
+
+            @hookimpl
+            def ata_should_reallocate(self, ctx):
+                self._log(ctx)
+                return on_event.ata_should_reallocate(ctx)
+
+            @hookimpl
+            def ata_reallocate(self, ctx, active):
+                return greedy.ata_reallocate(ctx, active)
+
+            @staticmethod
+            def _log(ctx):
+                log["raw"].append(state_features(ctx.observed))
+                log["true"].append(state_features(ctx.truth))
+                log["fatigue"].append(ctx.truth["humans"].col("fatigue").copy())
+
+        teacher = Teacher()
+        overrides = {"initial": teacher, "condition": teacher, "reallocation": teacher,
+                     "reconstructors": AuxReconstructor(None, mission, net=self.net)}
+        with torch.no_grad():
+            Simulation(mission, self.registry, ids, overrides=overrides).run()
+        return log
+
+    def aux_data(self, first: int, batches: int) -> dict[str, torch.Tensor]:
+        fat_in, fat_target = [], []
+        seq_in, seq_target = {"robots": [], "tasks": []}, {"robots": [], "tasks": []}
+        for i in range(batches):
+            mission = self._mission(self._setting(first + i), self.s.seed)
+            log = self.teacher_log(mission, self._ids("aux", first + i))
+            T = len(log["raw"])
+            hours = np.stack([r["humans"][..., 0] * 3.0 for r in log["raw"]], 1)   # (B, T, H)
+            f_obs = np.stack([r["humans"][..., 1] for r in log["raw"]], 1)
+            cog = np.broadcast_to(log["cognitive"][:, None, :], hours.shape)
+            fat_in.append(np.stack([f_obs, hours, cog], -1).reshape(-1, 3))
+            fat_target.append(np.stack(log["fatigue"], 1).reshape(-1))
+            for g in ("robots", "tasks"):
+                raw = np.stack([r[g] for r in log["raw"]], 2)          # (B, N, T, F)
+                true = np.stack([r[g] for r in log["true"]], 2)
+                B, N = raw.shape[:2]
+                seq_in[g].append(raw.reshape(B * N, T, -1))
+                seq_target[g].append(true.reshape(B * N, T, -1))
+        out = {"fatigue_in": np.concatenate(fat_in), "fatigue_target": np.concatenate(fat_target)}
+        for g in ("robots", "tasks"):
+            # sequences of different team sizes have the same length T: stack them all
+            out[f"{g}_in"] = np.concatenate(seq_in[g])
+            out[f"{g}_target"] = np.concatenate(seq_target[g])
+        return {k: torch.as_tensor(v, dtype=torch.float32) for k, v in out.items()}
+
+    def aux_losses(self, data: dict[str, torch.Tensor], idx: dict | None = None,
+                   sample: bool = True) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(cVAE loss, fatigue MSE, latency MSE) on the data (or the rows in idx)."""
+        fi, ft = data["fatigue_in"], data["fatigue_target"]
+        if idx is not None:
+            fi, ft = fi[idx["fatigue"]], ft[idx["fatigue"]]
+        recon, mu, logvar = self.net.fatigue(fi[:, 0], fi[:, 1], fi[:, 2], sample=sample)
+        cvae = FatigueCVAE.loss(recon, ft, mu, logvar)
+        f_mse = ((recon - ft) ** 2).mean()
+        lat = torch.zeros(())
+        for g in ("robots", "tasks"):
+            x, y = data[f"{g}_in"], data[f"{g}_target"]
+            if idx is not None:
+                x, y = x[idx[g]], y[idx[g]]
+            est, _ = self.net.latency[g](x)
+            lat = lat + ((est - y) ** 2).mean()
+        return cvae, f_mse, lat
+
+    def train_aux(self) -> dict[str, float]:
+        steps = self.phases()["aux"]
+        if steps == 0 or self.counters["aux"] >= steps:
+            return {}
+        data = self.aux_data(0, self.s.aux_batches)
+        n = {"fatigue": data["fatigue_in"].shape[0], "robots": data["robots_in"].shape[0],
+             "tasks": data["tasks_in"].shape[0]}
+        while self.counters["aux"] < steps:
+            t0 = time.perf_counter()
+            idx = {k: torch.randint(0, v, (min(v, 1024),), generator=self.gen)
+                   for k, v in n.items()}
+            cvae, f_mse, lat = self.aux_losses(data, idx)
+            loss = cvae + lat
+            self.aux_opt.zero_grad()
+            loss.backward()
+            self.aux_opt.step()
+            self.counters["aux"] += 1
+            self.wall += time.perf_counter() - t0
+            self.run_folder.log({"phase": "aux", "step": self.counters["aux"],
+                                 "loss": f"{loss.item():.5f}",
+                                 "aux_fatigue_mse": f"{f_mse.item():.5f}",
+                                 "aux_latency_mse": f"{lat.item():.5f}",
+                                 "wall_s": f"{self.wall:.1f}"})
+            if self.counters["aux"] % self.s.checkpoint_every == 0:
+                self.save()
+        self.save()
+        return self.aux_report()
+
+    def aux_report(self) -> dict[str, float]:
+        """Held-out reconstruction errors against the raw observation's."""
+        data = self.aux_data(self.s.aux_batches, 1)
+        with torch.no_grad():
+            _, f_mse, _ = self.aux_losses(data, sample=False)
+            raw_f = ((data["fatigue_in"][:, 0] - data["fatigue_target"]) ** 2).mean()
+            out = {"fatigue_mse": f_mse.item(), "fatigue_mse_raw": raw_f.item()}
+            for g in ("robots", "tasks"):
+                est, _ = self.net.latency[g](data[f"{g}_in"])
+                out[f"{g}_mse"] = ((est - data[f"{g}_target"]) ** 2).mean().item()
+                out[f"{g}_mse_raw"] = ((data[f"{g}_in"] - data[f"{g}_target"]) ** 2).mean().item()
+        return out
+
+    # -- phases 2 and 3: policies -----------------------------------------------------------------
+    def train_policy(self, phase: str) -> None:
+        steps = self.phases()[phase]
+        if steps == 0 or self.counters[phase] >= steps:
+            return
+        s = self.s
+        if self.counters[phase] == 0 and not self.run_folder.best_path.exists() \
+                and phase == "ita":
+            self._validate(phase, 0)          # the untrained policy: greedy's prior alone
+        while self.counters[phase] < steps:
+            t0 = time.perf_counter()
+            step = self.counters[phase]
+            setting = self._setting(step)
+            mission = self._mission(setting, s.seed)
+            ids = np.repeat(self._ids(phase, step), s.samples)
+            record, rec = self.rollout(mission, ids, phase, train=True)
+            R = hierarchical_rewards(record, expected=s.reward == "expected")
+            loss = self.policy_loss(phase, rec, R)
+            self.opt.zero_grad()
+            loss.backward()
+            if s.grad_clip > 0:
+                torch.nn.utils.clip_grad_norm_(self.net.parameters(), s.grad_clip)
+            self.opt.step()
+            self.counters[phase] += 1
+            self.counters["episodes"] += ids.size
+            dt = time.perf_counter() - t0
+            self.wall += dt
+            row = {"phase": phase, "step": step + 1, "setting": setting,
+                   "episodes": self.counters["episodes"], "episodes_per_s": f"{ids.size / dt:.1f}",
+                   "loss": f"{loss.item():.4f}", "mean_score": f"{R['total'].mean():.2f}",
+                   "R_ITA": f"{R['R_ITA'].mean():.2f}", "R_C": f"{R['R_C'].mean():.2f}",
+                   "R_TR": f"{R['R_TR'].mean():.2f}",
+                   "reallocations": f"{record.reallocated[:, 1:].sum(1).mean():.2f}",
+                   "wall_s": f"{self.wall:.1f}"}
+            if self.counters[phase] % s.eval_every == 0 or self.counters[phase] == steps:
+                self._validate(phase, self.counters[phase], row)
+            else:
+                self.run_folder.log(row)
+            if self.counters[phase] % s.checkpoint_every == 0:
+                self.save()
+        self.save()
+
+    def _validate(self, phase: str, step: int, row: dict | None = None) -> None:
+        score, expected = self.evaluate(phase)
+        row = dict(row or {"phase": phase, "step": step, "wall_s": f"{self.wall:.1f}"})
+        row["eval_score"] = f"{score:.2f}"
+        row["eval_expected"] = f"{expected:.2f}"
+        # the ITA phase selects by the ITA alone; the first CTR validation starts afresh
+        if phase == "ctr" and self.counters["ctr"] <= self.s.eval_every:
+            self.best_eval = -math.inf
+        if expected > self.best_eval:
+            self.best_eval = expected
+            self.save("best.pt")
+        self.run_folder.log(row)
+
+    def policy_loss(self, phase: str, rec: Recorder, R: dict[str, np.ndarray]) -> torch.Tensor:
+        """Shared-baseline policy gradient (+ self-imitation, entropy) of the phase's parts."""
+        s = self.s
+        K = s.samples
+        loss = torch.zeros(())
+        if phase == "ita":
+            emb = self.net.ita.encoder(to_tensors(rec.inherent))
+            logp, ent = D.trace_log_prob(self.net.ita, emb, rec.ita)
+            n = max(rec.ita.n_steps, 1)
+            return self._term(R["R_ITA"], logp, ent, n, K)
+        inherent = rec.inherent
+        E = R["total"].size
+        if self.trains_cond and rec.cond_choice:
+            logp, ent = self._condition_log_prob(rec, inherent)
+            loss = loss + self._term(R["R_C"], logp, ent, len(rec.cond_choice), K)
+        if self.trains_tr and rec.tr:
+            logp = torch.zeros(E)
+            ent = torch.zeros(E)
+            n = 0
+            for item in rec.tr:
+                rows = torch.as_tensor(item["rows"])
+                emb = self.net.tr.encoder(encoder_input({g: v[item["rows"]]
+                                                          for g, v in inherent.items()},
+                                                         item["state"]))
+                lp, en = D.trace_log_prob(self.net.tr, emb, item["trace"])
+                logp = logp.index_add(0, rows, lp)
+                ent = ent.index_add(0, rows, en)
+                n += item["trace"].n_steps
+            loss = loss + self._term(R["R_TR"], logp, ent, max(n / max(len(rec.tr), 1), 1), K)
+        return loss
+
+    def _condition_log_prob(self, rec: Recorder, inherent: dict[str, np.ndarray]
+                            ) -> tuple[torch.Tensor, torch.Tensor]:
+        E = rec.cond_feats[0].shape[0]
+        hidden = torch.zeros(E, self.cfg.d_model)
+        logp = torch.zeros(E)
+        ent = torch.zeros(E)
+        for k, state in enumerate(rec.cond_state):
+            emb = self.net.tr.encoder(encoder_input(inherent, state))
+            pooled = torch.cat([emb[g] for g in ("humans", "robots", "tasks")], 1).mean(1)
+            logit, hidden = self.net.cond(pooled, torch.as_tensor(rec.cond_feats[k]),
+                                          torch.as_tensor(rec.cond_prior[k]), hidden)
+            two = torch.log_softmax(torch.stack([torch.zeros_like(logit), logit], -1), -1)
+            choice = torch.as_tensor(rec.cond_choice[k]).long()
+            logp = logp + two.gather(-1, choice[:, None])[:, 0]
+            ent = ent - (two.exp() * two).sum(-1)
+        return logp, ent
+
+    def _term(self, reward: np.ndarray, logp: torch.Tensor, ent: torch.Tensor, n: float,
+              K: int) -> torch.Tensor:
+        """-(advantage * log-prob) with each scenario's mean as the baseline, minus the
+        entropy bonus, plus the pull towards each scenario's best sample (per decision)."""
+        adv = shared_baseline_advantage(reward, K)
+        scale = adv.std() + 1e-6
+        term = -(torch.as_tensor(adv / scale, dtype=torch.float32) * logp).mean()
+        term = term - self.s.entropy * ent.mean() / n
+        if self.s.self_imitation > 0:
+            best = reward.reshape(-1, K).argmax(1) + np.arange(reward.size // K) * K
+            term = term - self.s.self_imitation * logp[torch.as_tensor(best)].mean() / n
+        return term
+
+
+def shared_baseline_advantage(reward: np.ndarray, samples: int) -> np.ndarray:
+    """Each sample's reward less the mean of its scenario's samples: rewards (B * K,) laid out
+    scenario by scenario; the advantages of one scenario sum to zero."""
+    r = np.asarray(reward, dtype=float).reshape(-1, samples)
+    return (r - r.mean(1, keepdims=True)).reshape(-1)
+
+
+def _is(factory: Any, cls: type) -> bool:
+    return isinstance(factory, type) and issubclass(factory, cls)

@@ -1,0 +1,155 @@
+"""What a trainer component needs from ata, for built-in and third-party trainers alike.
+
+A *trainer* is a component of kind ``trainer``, registered by name like any other and chosen in
+a training mission's ``[components] trainer``; its settings are the table named after it. `ata
+train MISSION` builds it as ``factory(settings, mission, registry)`` and calls ``run``:
+
+    class MyTrainer:
+        log_fields = ["phase", "step", ...]                         # the columns of log.csv
+
+        @dataclass
+        class Settings: ...
+
+        def __init__(self, settings, mission, registry): ...
+        def scenario_ranges(self) -> list[tuple[int, int, int]]: ...   # (seed, first, end)
+        def total_steps(self) -> int: ...
+        def done_steps(self) -> int: ...                            # for the progress bar
+        def run(self, run: TrainRun, resume: bool = False) -> dict: ...
+
+``scenario_ranges`` lists every (root seed, scenario id range) the training may draw; the trainer
+records it in each checkpoint, the components it trains report it through the
+``ata_trained_on`` hook, and `ata eval` refuses to evaluate a method on any scenario in it.
+Training ids must stay below ``TRAINING_ID_LIMIT`` (evaluation ids start at 2**40).
+
+``TrainRun`` is the run folder: the resolved mission, ``log.csv`` (one row per step), and
+checkpoints written atomically (a temporary file, then a rename), so a killed run resumes from
+its last checkpoint with ``ata train --resume DIR``.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+from pathlib import Path
+from typing import Any, Callable
+
+from ata.core.errors import MissionError
+
+TRAINING_ID_LIMIT = 2 ** 40
+"""Training scenario ids lie below this; evaluation ids start there."""
+WEIGHTS = Path(__file__).resolve().parent / "weights"
+"""Where ``builtin:NAME`` checkpoints live (shipped with the package)."""
+_CACHE: dict[tuple[str, str], Any] = {}
+
+
+class CheckpointError(MissionError):
+    """A checkpoint that is missing, corrupted, or does not match what reads it."""
+
+    def __init__(self, path: str | Path, message: str):
+        super().__init__("checkpoint", None, message, file=str(path))
+
+
+def resolve(spec: str) -> Path:
+    """A checkpoint's path: ``builtin:NAME`` is ata/weights/NAME.pt, anything else a path."""
+    if spec.startswith("builtin:"):
+        return WEIGHTS / f"{spec.split(':', 1)[1]}.pt"
+    return Path(spec)
+
+
+def read_checkpoint(path: str | Path, kind: str | None = None) -> dict[str, Any]:
+    """Load a checkpoint dict with ``torch.load(..., weights_only=True)``; a missing, empty,
+    truncated or foreign file is a CheckpointError naming it.
+
+    :param kind: the method the checkpoint must be of (its ``kind`` entry), if any: a
+        TR-POMDP checkpoint given where ATA-HRL's is expected is refused.
+    """
+    import torch
+    p = Path(path)
+    if not p.exists():
+        raise CheckpointError(p, "no such checkpoint (train one with `ata train`)")
+    if p.is_dir():
+        raise CheckpointError(p, "is a directory, not a checkpoint")
+    try:
+        data = torch.load(p, map_location="cpu", weights_only=True)
+    except Exception as exc:   # empty, truncated, corrupted, or not a torch file at all
+        first = (str(exc).splitlines() or [""])[0][:200]
+        raise CheckpointError(p, f"cannot be read as a checkpoint ({type(exc).__name__}: "
+                                 f"{first})") from None
+    if not isinstance(data, dict) or "kind" not in data:
+        raise CheckpointError(p, "is not an ata checkpoint (it names no method)")
+    if kind is not None and data.get("kind") != kind:
+        raise CheckpointError(p, f"is a checkpoint of {data.get('kind')!r}, not of {kind!r}: "
+                                 f"name a checkpoint that `ata train` wrote for {kind}")
+    return data
+
+
+def load_cached(spec: str, build: Callable[[dict[str, Any], Path], Any], kind: str) -> Any:
+    """What `build(checkpoint data, path)` makes of a checkpoint of `kind` (in evaluation mode),
+    built once per process for each (kind, file)."""
+    path = resolve(spec)
+    key = (kind, str(path.resolve()) if path.exists() else str(path))
+    if key not in _CACHE:
+        module = build(read_checkpoint(path, kind), path)
+        module.eval()
+        _CACHE[key] = module
+    return _CACHE[key]
+
+
+def trained_on(spec: str, kind: str) -> list[tuple[int, int, int]]:
+    """The (root seed, first id, end id) ranges a checkpoint's training drew scenarios from,
+    as its trainer recorded them."""
+    data = read_checkpoint(resolve(spec), kind)
+    return [tuple(int(x) for x in r) for r in data.get("scenario_ranges", [])]
+
+
+class TrainRun:
+    """A training run folder.
+
+    :param fields: the columns of log.csv.
+    :param resume: carry on in an existing folder (its log is kept).
+    :param on_row: told of every logged row (the progress bar).
+    """
+
+    def __init__(self, run_dir: str | Path, mission_toml: str, fields: list[str], *,
+                 resume: bool = False, on_row: Callable[[dict], None] | None = None):
+        self.dir = Path(run_dir)
+        self.fields = list(fields)
+        self.on_row = on_row
+        self.dir.mkdir(parents=True, exist_ok=True)
+        if not resume:
+            (self.dir / "mission.resolved.toml").write_text(mission_toml, encoding="utf-8")
+            with open(self.dir / "log.csv", "w", newline="") as f:
+                csv.DictWriter(f, fieldnames=self.fields).writeheader()
+
+    @property
+    def checkpoint_path(self) -> Path:
+        return self.dir / "checkpoint.pt"
+
+    @property
+    def best_path(self) -> Path:
+        return self.dir / "best.pt"
+
+    def log(self, row: dict[str, Any]) -> None:
+        """Append one row to log.csv (unknown keys are an error: they would be lost)."""
+        unknown = set(row) - set(self.fields)
+        if unknown:
+            raise KeyError(f"log row has columns not in log.csv: {sorted(unknown)}")
+        row = {k: row.get(k, "") for k in self.fields}
+        with open(self.dir / "log.csv", "a", newline="") as f:
+            csv.DictWriter(f, fieldnames=self.fields).writerow(row)
+        if self.on_row is not None:
+            self.on_row(row)
+
+    def save(self, data: dict[str, Any], name: str = "checkpoint.pt") -> Path:
+        """Write a checkpoint atomically (torch.save to a temporary file, then a rename)."""
+        import torch
+        path = self.dir / name
+        tmp = path.with_name(path.name + ".tmp")
+        torch.save(data, tmp)
+        os.replace(tmp, path)
+        return path
+
+
+def ranges_overlap(a: tuple[int, int, int], b: tuple[int, int, int]) -> bool:
+    """Whether two (root seed, first id, end id) ranges share a scenario."""
+    return a[0] == b[0] and a[1] < b[2] and b[1] < a[2]
