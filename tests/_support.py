@@ -60,25 +60,33 @@ class Killed(Exception):
     """Raised from a trainer's log hook to kill a run mid-phase."""
 
 
+def train(session, run_dir, *, resume: bool = False, on_row=None):
+    """Build the mission's trainer and run it in run_dir (as `ata train` does); return it."""
+    from ata.core.runner import build_trainer
+    from ata.training import TrainRun
+    trainer = build_trainer(session)
+    run = TrainRun(run_dir, session.mission.to_toml(), trainer.log_fields, resume=resume,
+                   on_row=on_row)
+    trainer.report = trainer.run(run, resume=resume)
+    return trainer
+
+
 def whole_and_killed(session, tmp_path, phase: str, step: str):
     """Train `session` to the end in tmp_path/whole; train it again in tmp_path/broken, killed
-    when the log reaches (phase, step); return the whole trainer and one resumed from the
-    broken run's folder (not yet run on)."""
+    when the log reaches (phase, step); resume the broken run from its folder and return both
+    trainers."""
     from ata.core.runner import load_session
-    from ata.learn import train as T
 
-    whole = T.Trainer(session, tmp_path / "whole")
-    whole.run()
+    whole = train(session, tmp_path / "whole")
 
     def kill(row):
         if row["phase"] == phase and str(row["step"]) == step:
             raise Killed
 
-    broken = T.Trainer(session, tmp_path / "broken", on_row=kill)
     with pytest.raises(Killed):
-        broken.run()
-    resumed = T.Trainer(load_session(str(tmp_path / "broken" / "mission.resolved.toml")),
-                        tmp_path / "broken", resume=True)
+        train(session, tmp_path / "broken", on_row=kill)
+    again = load_session(str(tmp_path / "broken" / "mission.resolved.toml"))
+    resumed = train(again, tmp_path / "broken", resume=True)
     return whole, resumed
 
 

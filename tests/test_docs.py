@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from ata.core.mission import ComponentSlots, MissionSettings, TrainSettings
+from ata.core.mission import ComponentSlots, MissionSettings
 from ata.core.registry import OPTIONAL_PLUGINS, collect_components, get_plugin_manager
 from ata.core.settings import describe
 
@@ -17,7 +17,6 @@ def _tables():
     reg = collect_components(get_plugin_manager(optional=OPTIONAL_PLUGINS, entry_points=False))
     yield "mission", MissionSettings
     yield "components", ComponentSlots
-    yield "train", TrainSettings
     for info in reg.components.values():
         yield info.name, getattr(info.factory, "Settings", None)
 

@@ -17,7 +17,8 @@ from ata.core import evaluate as ev
 from ata.core import report as rep
 from ata.core.errors import MissionError
 from ata.core.executors import ProcessExecutor, SerialExecutor
-from ata.core.mission import TrainSettings
+from ata import hookimpl
+from ata.core.kernel import Simulation
 from ata.core.runner import BASELINE_MISSION, load_session, run_mission
 from ata.plugins.policies import milp as M
 
@@ -225,25 +226,50 @@ def test_per_setting_overrides(tmp_path):
 
 
 # -- held-out scenarios -------------------------------------------------------------------------
-def test_eval_pairs_are_disjoint_from_training(suite):
-    from ata.learn.train import EVAL_SEED_OFFSET
+class TrainedOn:
+    """A reconstructor that claims its weights saw scenarios 0..99 of seed 7."""
 
-    assert ev.TRAIN_EVAL_SEED_OFFSET == EVAL_SEED_OFFSET
-    train = TrainSettings()
-    for seed in (0, train.seed, train.seed + EVAL_SEED_OFFSET):
+    def __init__(self, settings, mission):
+        pass
+
+    @hookimpl
+    def ata_trained_on(self):
+        return [(7, 0, 100)]
+
+    @hookimpl
+    def ata_reconstruct(self, sim, obs, inherent, out):
+        pass
+
+
+def test_evaluation_refuses_the_scenarios_a_component_was_trained_on(suite):
+    # evaluation ids start at 2**40, where no trainer may draw (ata.training.TRAINING_ID_LIMIT)
+    from ata.training import TRAINING_ID_LIMIT
+    assert ev.EVAL_FIRST_SCENARIO == TRAINING_ID_LIMIT
+    for seed in (0, 12345):
         _, jobs = ev.plan([str(suite)], seed=seed, scenarios=3)
         for job in jobs:
-            e_seed, lo, hi = ev.eval_range(job.mission)
-            assert e_seed == seed and lo == ev.EVAL_FIRST_SCENARIO
-            for t_seed, t_lo, t_hi in ev.training_ranges(job.mission.train):
-                assert e_seed != t_seed or hi <= t_lo or t_hi <= lo
-    # the check itself: a mission on training's own pairs is refused
-    session = load_session(str(BASELINE_MISSION), [f"mission.seed={train.seed}",
-                                                   "mission.first_scenario=5"])
-    with pytest.raises(MissionError, match="held out"):
-        ev.check_held_out(session.mission)
-    long_train = TrainSettings(rl_steps=10 ** 9, batch_size=4096)
-    assert ev.training_ranges(long_train)[0][2] > ev.EVAL_FIRST_SCENARIO
+            assert ev.eval_range(job.mission) == (seed, ev.EVAL_FIRST_SCENARIO,
+                                                  ev.EVAL_FIRST_SCENARIO + 3)
+    # the check asks every component what it was trained on
+    extra = type("Plugin", (), {"ata_register_components": hookimpl(
+        lambda self, register: register("reconstructor", "trained_on", TrainedOn))})()
+    for first, refused in ((5, True), (100, False), (2 ** 40, False)):
+        session = load_session(str(BASELINE_MISSION), ["mission.seed=7",
+                                                       f"mission.first_scenario={first}",
+                                                       "components.reconstructors="
+                                                       "['trained_on']"], extra=(extra,))
+        sim = Simulation(session.mission.replace(scenarios=1), session.registry, [first])
+        if refused:
+            with pytest.raises(MissionError, match="held out"):
+                ev.check_held_out(session.mission, sim)
+        else:
+            ev.check_held_out(session.mission, sim)
+    # another seed's pairs are not the trained ones
+    session = load_session(str(BASELINE_MISSION), ["mission.seed=8", "mission.first_scenario=5",
+                                                   "components.reconstructors=['trained_on']"],
+                           extra=(extra,))
+    ev.check_held_out(session.mission, Simulation(session.mission.replace(scenarios=1),
+                                                  session.registry, [5]))
 
 
 # -- the MILP cache -----------------------------------------------------------------------------

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from ata.core.rewards import delta_performance, hierarchical_rewards
+from ata.plugins.ata_hrl.rewards import delta_performance, hierarchical_rewards
 from ata.core.state import EpisodeRecord
 
 
@@ -22,7 +22,8 @@ def record():
 
 def test_delta_performance_between_reallocations():
     # epoch 1: r1 - r0 = 5 - 10 = -5; epoch 3: r3 - r1 = -5 - 5 = -10
-    assert delta_performance(record())[0] == pytest.approx(-15.0)
+    rec = record()
+    assert delta_performance(rec.r_perf, rec.reallocated)[0] == pytest.approx(-15.0)
 
 
 def test_hierarchical_rewards_by_hand():
@@ -42,3 +43,13 @@ def test_no_reallocation_means_plain_performance():
     rec.reallocated[:] = False
     R = hierarchical_rewards(rec)
     assert R["R_ITA"][0] == R["R_C"][0] == R["R_TR"][0] == 30.0
+
+
+def test_expected_points_replace_the_drawn_ones_when_asked():
+    rec = record()
+    rec.r_expected[0] = [4.0, 2.0, 6.0, 1.0]
+    R = hierarchical_rewards(rec, expected=True)
+    # the same formulas on r_expected: total 13; Delta r: (2 - 4) + (1 - 2) = -3
+    assert R["total"][0] == 13.0
+    assert R["R_C"][0] == pytest.approx(13.0 - 3.0 - 0.4 * 2 / 4)
+    assert hierarchical_rewards(rec)["total"][0] == 30.0

@@ -4,27 +4,24 @@ import numpy as np
 import pytest
 import torch
 
-from _support import whole_and_killed
+from _support import train, whole_and_killed
 from ata.core.kernel import Simulation
-from ata.core.runner import load_session, run_mission
+from ata.core.runner import load_session, run_mission, training_mission_for
 from ata.core.state import Allocation
-from ata.learn import dqn
-from ata.learn import train as T
-from ata.learn.dqn_train import Replay
-from ata.learn.runtime import CheckpointError, read_checkpoint
 from ata.plugins.conditions import Always
-from ata.plugins.tr_pomdp import TRPOMDPPolicy
+from ata.plugins.tr_pomdp import agents as dqn
+from ata.plugins.tr_pomdp.policy import TRPOMDPPolicy
+from ata.plugins.tr_pomdp.trainer import Replay
+from ata.training import CheckpointError, WEIGHTS, read_checkpoint
 
-TINY = ["train.batch_size=4", "train.eval_scenarios=4", "train.dqn_steps=3",
-        "train.dqn_updates=2", "train.dqn_minibatch=32", "train.eval_every=1",
-        "train.checkpoint_every=1", "train.dqn_buffer=2000", "train.dqn_target_sync=2",
-        "train.eps_decay_steps=2", "train.dqn_hidden=16", "train.threads=1",
-        "train.imitation_steps=2", "train.rl_steps=1", "train.d_model=16"]
+TINY = ["dqn.batch_size=4", "dqn.eval_scenarios=4", "dqn.steps=3", "dqn.updates=2",
+        "dqn.minibatch=32", "dqn.eval_every=1", "dqn.checkpoint_every=1", "dqn.buffer=2000",
+        "dqn.target_sync=2", "dqn.eps_decay_steps=2", "dqn.hidden=16", "dqn.threads=1"]
+EXAMPLES = WEIGHTS.parents[1] / "examples" / "missions"
 
 
 def session(*extra, plugins=("trp",)):
-    names = list(plugins)
-    return load_session(str(T.TRP_MISSION), [*T.method_overrides(names), *TINY, *extra], names)
+    return load_session(str(training_mission_for(list(plugins))), [*TINY, *extra])
 
 
 def context(setting="a", epochs=3, ids=(0, 1, 2)):
@@ -137,58 +134,71 @@ def test_replay_buffer_is_a_ring():
     assert torch.equal(other.data["obs"], buf.data["obs"]) and other.pos == 1
 
 
+def tiny_ita(tmp_path):
+    """A checkpoint of ATA-HRL whose ITA (untrained: greedy's prior) AtRL-TR starts from."""
+    s = load_session(str(training_mission_for(["ita"])),
+                     ["ata_hrl.ita_steps=0", "ata_hrl.d_model=16", "ata_hrl.hidden=16",
+                      "ata_hrl.eval_scenarios=2"])
+    train(s, tmp_path / "ita")
+    return tmp_path / "ita" / "best.pt"
+
+
 @pytest.mark.parametrize("plugins", [("trp",), ("ita", "trp")])
 def test_training_smoke_and_checkpoint_round_trip(tmp_path, plugins):
-    s = session(plugins=plugins)
-    assert s.mission.slots.reallocation == "tr_pomdp"
+    extra = [f"attention.checkpoint='{tiny_ita(tmp_path)}'"] if "ita" in plugins else []
+    s = session(*extra, plugins=plugins)
+    assert s.mission.slots.reallocation == "tr_pomdp" and s.mission.slots.trainer == "dqn"
     assert s.mission.slots.initial == ("attention" if "ita" in plugins else "random")
-    trainer = T.Trainer(s, tmp_path)
-    before = [p.detach().clone() for p in trainer.agents.nets.parameters()]
-    report = trainer.run()
-    assert report["counters"]["dqn"] == 3
-    assert any(not torch.equal(a, b) for a, b in zip(before, trainer.agents.nets.parameters()))
-    rows = [r.split(",") for r in (tmp_path / "log.csv").read_text().splitlines()]
+    out = tmp_path / "run"
+    trainer = train(s, out)
+    assert trainer.report["counters"]["dqn"] == 3
+    rows = [r.split(",") for r in (out / "log.csv").read_text().splitlines()]
     dqn_rows = [r for r in rows if r[0] == "dqn"]
     assert len(dqn_rows) == 3 and all(np.isfinite(float(r[4])) for r in dqn_rows)
-    if "ita" in plugins:
-        assert [r[0] for r in rows[1:]].count("imitation") == 2
-    data = torch.load(tmp_path / "checkpoint.pt", weights_only=True)
+    data = torch.load(out / "checkpoint.pt", weights_only=True)
+    assert data["kind"] == "tr_pomdp"
     assert set(data) >= {"agents", "agents_target", "agents_optimizer", "agents_config",
-                         "replay", "rng", "counters", "mission"}
+                         "replay", "rng", "counters", "mission", "scenario_ranges"}
     assert data["replay"]["robot"]["size"] > 0
-    best = read_checkpoint(tmp_path / "best.pt")
+    best = read_checkpoint(out / "best.pt", "tr_pomdp")
     assert "replay" not in best and "agents" in best
     # the trained agents run as a mission component from their checkpoint file
-    run = load_session(str(T.TRP_MISSION),
-                       [*T.method_overrides(list(plugins)), "mission.scenarios=3",
-                        f"tr_pomdp.checkpoint='{tmp_path / 'best.pt'}'"]
-                       + ([f"attention.checkpoint='{tmp_path / 'best.pt'}'"]
-                          if "ita" in plugins else []), list(plugins))
+    run = load_session(str(out / "mission.resolved.toml"),
+                       ["mission.scenarios=3", f"tr_pomdp.checkpoint='{out / 'best.pt'}'"])
     result = run_mission(run)
     assert result.reallocations.tolist() == [29, 29, 29]
 
 
+def test_the_agents_learn(tmp_path):
+    trainer = train(session(), tmp_path)
+    torch.manual_seed(12345)                # the trainer's seed: the agents before training
+    fresh = dqn.AgentNets(trainer.agents.cfg)
+    assert any(not torch.equal(a, b) for a, b in zip(fresh.parameters(),
+                                                       trainer.agents.nets.parameters()))
+
+
 def test_resume_after_kill_matches_an_uninterrupted_run(tmp_path):
     whole, resumed = whole_and_killed(session(), tmp_path, "dqn", "2")
-    assert resumed.counters["dqn"] == 1
-    resumed.run()
     assert resumed.counters == whole.counters
     for (k, a), (_, b) in zip(whole.agents.nets.state_dict().items(),
                               resumed.agents.nets.state_dict().items()):
-        assert torch.allclose(a, b, atol=1e-6), k
+        assert torch.equal(a, b), k
 
 
 def test_cli_train_trp_and_bad_checkpoint(cli, tmp_path):
     out = tmp_path / "run"
-    res = cli("train", "--plugins", "trp", "--out", out, *[x for kv in TINY for x in ("--set", kv)])
+    res = cli("train", "--plugins", "trp", "--out", out, "--quiet",
+              *[x for kv in TINY for x in ("--set", kv)])
     assert res.exit_code == 0, res.output
     assert (out / "best.pt").exists() and "dqn" in (out / "log.csv").read_text()
     res = cli("train", "--plugins", "trp,ctr")
-    assert res.exit_code == 2 and "name one" in res.output
-    # a checkpoint without agents is refused with a clear message
+    assert res.exit_code == 2 and "no built-in training mission" in res.output
+    # a file that is no checkpoint, and an ATA-HRL checkpoint, are refused with clear messages
     (tmp_path / "bad.pt").write_bytes(b"not a checkpoint")
-    with pytest.raises(CheckpointError):
+    with pytest.raises(CheckpointError, match="cannot be read"):
         TRPOMDPPolicy(TRPOMDPPolicy.Settings(checkpoint=str(tmp_path / "bad.pt")), None)
+    with pytest.raises(CheckpointError, match="not of 'tr_pomdp'"):
+        TRPOMDPPolicy(TRPOMDPPolicy.Settings(checkpoint=str(tiny_ita(tmp_path))), None)
 
 
 SHIPPED = ["tr_pomdp_a", "tr_pomdp_b", "atrl_tr_a", "atrl_tr_b"]
@@ -196,9 +206,8 @@ SHIPPED = ["tr_pomdp_a", "tr_pomdp_b", "atrl_tr_a", "atrl_tr_b"]
 
 @pytest.mark.parametrize("name", SHIPPED)
 def test_shipped_weights_load_and_run(name):
-    path = T.TRP_MISSION.parents[2] / "examples" / "missions" / f"{name}.toml"
-    s = load_session(str(path), ["mission.scenarios=2"])
-    data = read_checkpoint(T.TRP_MISSION.parent.parent / "weights" / f"{name}.pt")
+    s = load_session(str(EXAMPLES / f"{name}.toml"), ["mission.scenarios=2"])
+    data = read_checkpoint(WEIGHTS / f"{name}.pt", "tr_pomdp")
     assert data["counters"]["dqn"] > 0 and "replay" not in data
     assert f"setting = \"{name[-1]}\"" in data["mission"]
     result = run_mission(s)
@@ -208,9 +217,8 @@ def test_shipped_weights_load_and_run(name):
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["tr_pomdp_a", "atrl_tr_a"])
 def test_shipped_agents_beat_random_on_held_out_scenarios(name):
-    path = T.TRP_MISSION.parents[2] / "examples" / "missions"
     common = ["mission.scenarios=200", "mission.first_scenario=1099511627776"]
-    learned = run_mission(load_session(str(path / f"{name}.toml"), common))
-    random = run_mission(load_session(str(path / "random_baseline.toml"), common))
+    learned = run_mission(load_session(str(EXAMPLES / f"{name}.toml"), common))
+    random = run_mission(load_session(str(EXAMPLES / "random_baseline.toml"), common))
     diff = learned.total - random.total
     assert diff.mean() - 2 * diff.std(ddof=1) / np.sqrt(diff.size) > 0

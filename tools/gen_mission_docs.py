@@ -5,7 +5,7 @@ Usage: python tools/gen_mission_docs.py   (tests/test_docs.py checks the result)
 
 from pathlib import Path
 
-from ata.core.mission import ComponentSlots, MissionSettings, TrainSettings
+from ata.core.mission import ComponentSlots, MissionSettings
 from ata.core.registry import OPTIONAL_PLUGINS, collect_components, get_plugin_manager
 from ata.core.settings import describe
 
@@ -26,8 +26,7 @@ def main() -> None:
     registry = collect_components(get_plugin_manager(optional=OPTIONAL_PLUGINS,
                                                     entry_points=False))
     lines = [MARK, "", *table(MissionSettings), "", "## `[components]`", "",
-             *table(ComponentSlots), "", "## `[train]` (`ata train` only)", "",
-             *table(TrainSettings), ""]
+             *table(ComponentSlots), ""]
     kinds: dict[str, list[str]] = {}
     for info in registry.components.values():
         kinds.setdefault(info.name, []).append(info.kind)

@@ -26,8 +26,9 @@ from ata.plugins.ata_hrl.decoder import DecodeSettings, Decoder
 from ata.plugins.ata_hrl.features import (inherent_features, seen_state, state_features,
                                           to_tensors)
 from ata.plugins.ata_hrl.network import ATAHRLNet, COND_FEATURES
-from ata.plugins.policies.greedy import RetaskCost
-from ata.plugins.policies.plan import PlanStart, plan_start
+from ata.plugins import tables
+from ata.plugins.policies.greedy import GreedyPolicy, RetaskCost
+from ata.plugins.policies.plan import PlanStart, plan_start, project
 
 
 # -- what a training rollout records --------------------------------------------------------------
@@ -38,7 +39,7 @@ class Recorder:
 
     inherent: dict[str, np.ndarray] | None = None           # I features (E, N, F)
     ita: D.DecodeTrace | None = None
-    cond_state: list[dict[str, np.ndarray]] = field(default_factory=list)   # per epoch >= 1
+    cond_state: list[tuple] = field(default_factory=list)   # (raw S, seen S) per epoch >= 1
     cond_feats: list[np.ndarray] = field(default_factory=list)              # (E, F_c)
     cond_prior: list[np.ndarray] = field(default_factory=list)              # (E,)
     cond_choice: list[np.ndarray] = field(default_factory=list)             # (E,) bool
@@ -64,9 +65,12 @@ def decoder_start(ctx: DecisionContext, seen: dict[str, np.ndarray] | None
     utilisation now). Reconstructed robot rows move the robots and take down the ones they
     show down; a robot observed down stays down."""
     start = plan_start(ctx)
-    B, H = start.eta.shape
-    if seen is None:                                  # t = 0: fresh humans, nothing observed
-        return start, np.ones((B, H)), np.zeros((B, H))
+    if seen is None:
+        # the initial allocation: the fatigue the model gives for the working hours S shows at
+        # t = 0 (as greedy's); nothing has been done yet, so no utilisation
+        settings = decode_settings(ctx)
+        return (start, tables.fatigue(start.hours, settings.fatigue_floor),
+                np.zeros_like(start.hours))
     if "aux_robots" in ctx.reconstructed:
         rob = seen["robots"]
         area = ctx.inherent.extras["area_m"][:, None]
@@ -140,47 +144,56 @@ class AttentionITA(LearnedComponent):
         return ctx.previous
 
 
-def encoder_input(inherent: dict[str, np.ndarray], state: dict[str, np.ndarray]
-                  ) -> dict[str, torch.Tensor]:
-    """The CTR encoder's tokens: I and S features side by side."""
-    return to_tensors({g: np.concatenate([inherent[g], state[g]], -1) for g in inherent})
-
-
 class CTRPolicy(LearnedComponent):
     """pi_C and pi_TR. At every epoch t >= 1 the state encoder reads I and S as the policy sees
-    it and the GRU of pi_C advances; pi_C decides whether to reallocate; where it does, pi_TR
-    decodes every reallocatable POI again, with 'keep its triple' as a choice, the re-briefs and
-    re-plans a change would cost among the decoder's features, and the previous allocation as
-    context. In the options framework: pi_C's option starts at every epoch and ends after its
-    decision; pi_TR's starts when pi_C says yes and ends once it has reallocated. With
-    ``condition = "always"`` pi_TR runs every epoch (the w/o.C ablation)."""
+    it and the GRU of pi_C advances; pi_C decides whether to reallocate. Where it does, pi_TR
+    first decides, for every reallocatable POI at once, whether to keep its triple or plan it
+    again (from the POI's projected outcome if kept, who holds it and how loaded they are, and
+    whether its robot is down or its attributes changed since it was planned); the kept POIs are
+    booked as the robots will visit them, and the others are decoded step by step after them,
+    the re-briefs and re-plans a change would cost among the decoder's features. In the options
+    framework: pi_C's option starts at every epoch and ends after its decision; pi_TR's starts
+    when pi_C says yes and ends once it has reallocated. With ``condition = "always"`` pi_TR
+    runs every epoch (the w/o.C ablation)."""
 
-    def __init__(self, *args: Any, **kwargs: Any):
-        super().__init__(*args, **kwargs)
+    def __init__(self, settings: "LearnedComponent.Settings", mission: Any,
+                 net: ATAHRLNet | None = None):
+        super().__init__(settings, mission, net)
         self.hidden: torch.Tensor | None = None
         self.epoch = -1
+        self.emb_i: dict[str, torch.Tensor] | None = None     # the encoder's of I, once
         self.emb: dict[str, torch.Tensor] | None = None
+        self.raw: dict[str, np.ndarray] | None = None
         self.seen: dict[str, np.ndarray] | None = None
         self.prev_working: np.ndarray | None = None
         self.prev_attrs: np.ndarray | None = None
         self.last_realloc: np.ndarray | None = None
-        self.decided: np.ndarray | None = None
+        self.planned_attrs: np.ndarray | None = None    # (B, P, 2) attributes planned with
+        # greedy's reallocation, whose choice is pi_TR's prior (its settings where the mission
+        # has a greedy table)
+        greedy = mission.component_settings.get("greedy") if mission is not None else None
+        self.greedy = GreedyPolicy(greedy or GreedyPolicy.Settings(), mission)
+        self.greedy_attrs: np.ndarray | None = None    # greedy's own memory, as if alone
 
     def _observe(self, ctx: DecisionContext) -> None:
         """Once per epoch: encode the state and compute the condition features."""
         if self.epoch == ctx.epoch:
             return
         self.epoch = ctx.epoch
-        inherent = inherent_features(ctx.inherent)
+        if self.emb_i is None:
+            inherent = inherent_features(ctx.inherent)
+            if self.recorder is not None:
+                self.recorder.inherent = inherent
+            with torch.no_grad():
+                self.emb_i = self.net.tr.encoder(to_tensors(inherent))
+        self.raw = state_features(ctx.observed)
         self.seen = seen_state(ctx)
         with torch.no_grad():
-            self.emb = self.net.tr.encoder(encoder_input(inherent, self.seen))
+            self.emb = self.net.tr.embed(self.emb_i, to_tensors(self.raw), to_tensors(self.seen))
         self.cond_feats, self.cond_prior = condition_features(self, ctx)
         if self.recorder is not None:
             rec = self.recorder
-            if rec.inherent is None:
-                rec.inherent = inherent
-            rec.cond_state.append(self.seen)
+            rec.cond_state.append((self.raw, self.seen))
             rec.cond_feats.append(self.cond_feats)
             rec.cond_prior.append(self.cond_prior)
 
@@ -199,7 +212,6 @@ class CTRPolicy(LearnedComponent):
             [torch.zeros_like(logit), logit], -1)).astype(bool)
         if self.recorder is not None:
             self.recorder.cond_choice.append(decide.copy())
-        self.decided = decide
         self.last_realloc = np.where(decide, ctx.epoch, self.last_realloc)
         return decide
 
@@ -213,19 +225,47 @@ class CTRPolicy(LearnedComponent):
         sub = ctx.take(rows)
         seen = {g: v[rows] for g, v in self.seen.items()}
         start, fatigue, util = decoder_start(sub, seen)
-        dec = Decoder(start, sub.reallocatable, fatigue, util, decode_settings(ctx),
-                      previous=sub.previous)
+        settings = decode_settings(ctx)
+        dec = Decoder(start, sub.reallocatable, fatigue, util, settings, previous=sub.previous)
+        kept_proj = project(start, sub.previous, capture_s=settings.capture_s,
+                            fatigue_floor=settings.fatigue_floor)
+        attrs = _attrs(sub)
+        changed = (attrs != self.planned_attrs[rows]).any(-1)
         emb = {g: v[rows] for g, v in self.emb.items()}
         trace = None
         if self.recorder is not None:
             trace = D.DecodeTrace()
             self.recorder.tr.append({"epoch": ctx.epoch, "rows": rows, "trace": trace,
-                                     "state": seen})
-        alloc = D.decode(dec, self.net.tr, emb, self.chooser(ctx, "ctr"),
-                         residual=self.settings.learned, trace=trace)
+                                     "raw": {g: v[rows] for g, v in self.raw.items()},
+                                     "seen": seen})
+        choose = self.chooser(sub, "ctr")      # the reallocating scenarios' own streams
+        # the heuristic's choice, the prior: greedy weighs keeping, repairing and re-planning
+        self.greedy.planned_attrs = self.greedy_attrs[rows]
+        heuristic = self.greedy.ata_reallocate(sub, np.ones(rows.size, bool))
+        self.greedy_attrs[rows] = self.greedy.planned_attrs
+        keep_in = dec.keep_inputs(kept_proj.expected, kept_proj.finish, changed, heuristic)
+        first = D.decide_keep(keep_in, self.net.tr, emb, choose,
+                              residual=self.settings.learned, trace=trace)
+        # booked first: the kept POIs with their triples, greedy's with greedy's; the rest are
+        # decoded after them
+        booked = heuristic.where(first == D.HEURISTIC, sub.previous)
+        replanned = dec.left & (first != D.KEEP)
+        dec.replay(dec.left & (first >= D.KEEP), booked)
+        alloc = D.decode(dec, self.net.tr, emb, choose, residual=self.settings.learned,
+                         trace=trace)
+        self.planned_attrs[rows] = np.where(replanned[..., None], attrs,
+                                            self.planned_attrs[rows])
+        # the decoder's allocation holds the decoded POIs; the booked ones take their triples
+        alloc = booked.where(first >= D.KEEP, alloc)
         out.robot[rows], out.navigator[rows], out.classifier[rows] = \
             alloc.robot, alloc.navigator, alloc.classifier
         return out
+
+
+def _attrs(ctx: DecisionContext) -> np.ndarray:
+    """(B, P, 2) the POIs' kind and difficulty as currently seen."""
+    t = ctx.observed["tasks"]
+    return np.stack([t.col("kind"), t.col("difficulty")], -1)
 
 
 def condition_features(policy: CTRPolicy, ctx: DecisionContext
@@ -243,6 +283,8 @@ def condition_features(policy: CTRPolicy, ctx: DecisionContext
         est = ctx.inherent["tasks"]
         policy.prev_working = np.ones_like(working)
         policy.prev_attrs = np.stack([est.col("kind"), est.col("difficulty")], -1)
+        policy.planned_attrs = policy.prev_attrs.copy()
+        policy.greedy_attrs = policy.prev_attrs.copy()
         policy.last_realloc = np.zeros(B)
     failed = (policy.prev_working & ~working)
     changed = (attrs != policy.prev_attrs).any(-1)

@@ -48,11 +48,13 @@ def stream_sampler(uniform: Callable[[str, int, tuple], np.ndarray]) -> Chooser:
 
 @dataclass
 class DecodeTrace:
-    """Per sub-decision kind, per step: the inputs, the context indices and the choice."""
+    """Per sub-decision kind, per step: the inputs, the context indices and the choice; and
+    pi_TR's keep step (its inputs and choices), when there was one."""
 
     steps: dict[str, dict[str, list[np.ndarray]]] = field(
         default_factory=lambda: {k: {"features": [], "mask": [], "prior": [], "choice": [],
                                      "active": [], "robot": [], "task": []} for k in KINDS})
+    keep: dict[str, np.ndarray] | None = None
 
     def add(self, kind: str, inp: StepInputs, mask: np.ndarray, choice: np.ndarray,
             active: np.ndarray, robot: np.ndarray | None, task: np.ndarray | None) -> None:
@@ -74,6 +76,14 @@ class DecodeTrace:
         return {k: np.stack(v) for k, v in self.steps[kind].items()}
 
 
+def _clean(inp: StepInputs) -> StepInputs:
+    """Finite inputs: episodes whose decoding is over carry dummy choices (a robot that is
+    down, say), whose features may be inf - inf; their decisions are masked out anyway."""
+    return StepInputs(np.nan_to_num(inp.features, nan=0.0, posinf=10.0, neginf=-10.0),
+                      inp.mask, np.nan_to_num(inp.prior, nan=-1.0, posinf=1e3, neginf=-1e3),
+                      inp.active)
+
+
 def _tensors(inp: StepInputs, mask: np.ndarray) -> tuple[torch.Tensor, ...]:
     return (torch.from_numpy(inp.features), torch.as_tensor(inp.prior, dtype=torch.float32),
             torch.from_numpy(mask))
@@ -82,12 +92,11 @@ def _tensors(inp: StepInputs, mask: np.ndarray) -> tuple[torch.Tensor, ...]:
 def decode(dec: Decoder, net: AllocationNet, emb: dict[str, torch.Tensor], choose: Chooser,
            *, residual: bool = True, trace: DecodeTrace | None = None) -> Allocation:
     """Decode every POI left in `dec` with the network's scorers (no gradient)."""
-    E, R = dec.E, dec.R
-    e = np.arange(E)
-    prev = dec.previous
+    E = dec.E
     cands = {k: net.candidates(k, emb) for k in KINDS}
 
     def pick(kind: str, inp: StepInputs, mask: np.ndarray, active: np.ndarray, robot, task):
+        inp = _clean(inp)
         feats, prior, m = _tensors(inp, mask)
         idx = {"robot": torch.as_tensor(robot if robot is not None else np.zeros(E, np.int64)),
                "task": torch.as_tensor(task if task is not None else np.zeros(E, np.int64))}
@@ -108,25 +117,35 @@ def decode(dec: Decoder, net: AllocationNet, emb: dict[str, torch.Tensor], choos
             p = pick("poi", pi, pi.mask, active, dec.r_ff, None)
             ri = dec.robot_inputs(p)
             r = pick("robot", ri, ri.mask, active, None, p)
-            keep = r == R
-            if prev is not None:
-                r = np.where(keep, prev.robot[e, p], r)
             ni = dec.nav_inputs(p, r)
-            nmask = ni.mask
-            if prev is not None and keep.any():
-                forced = np.zeros_like(nmask)
-                forced[e, prev.navigator[e, p] + 1] = True
-                nmask = np.where(keep[:, None], forced, nmask)
-            n = pick("nav", ni, nmask, active, r, p) - 1
+            n = pick("nav", ni, ni.mask, active, r, p) - 1
             ci = dec.cls_inputs(p, r, n)
-            cmask = ci.mask
-            if prev is not None and keep.any():
-                forced = np.zeros_like(cmask)
-                forced[e, prev.classifier[e, p] + 1] = True
-                cmask = np.where(keep[:, None], forced, cmask)
-            c = pick("cls", ci, cmask, active, r, p) - 1
+            c = pick("cls", ci, ci.mask, active, r, p) - 1
             dec.commit(active, p, r, n, c)
     return dec.finish()
+
+
+DECODE, KEEP, HEURISTIC = 0, 1, 2
+"""pi_TR's first step, per POI: decode it again, keep its triple, take greedy's."""
+
+
+def decide_keep(inputs: StepInputs, net: AllocationNet, emb: dict[str, torch.Tensor],
+                choose: Chooser, *, residual: bool = True,
+                trace: DecodeTrace | None = None) -> np.ndarray:
+    """pi_TR's first step: (E, P) DECODE, KEEP or HEURISTIC per POI (-1 where nothing is
+    decided)."""
+    inputs = _clean(inputs)
+    with torch.no_grad():
+        logits = net.keep(torch.from_numpy(inputs.features), emb["tasks"],
+                          torch.as_tensor(inputs.prior, dtype=torch.float32),
+                          torch.from_numpy(inputs.mask), residual)
+        choice = choose("keep", logits)
+    decided = inputs.mask.any(-1)
+    if trace is not None:
+        trace.keep = {"features": inputs.features, "mask": inputs.mask,
+                      "prior": inputs.prior.astype(np.float32), "choice": choice,
+                      "decided": decided}
+    return np.where(decided, choice, -1)
 
 
 def trace_log_prob(net: AllocationNet, emb: dict[str, torch.Tensor], trace: DecodeTrace,
@@ -136,6 +155,16 @@ def trace_log_prob(net: AllocationNet, emb: dict[str, torch.Tensor], trace: Deco
     E = emb["tasks"].shape[0]
     logp = torch.zeros(E)
     ent = torch.zeros(E)
+    if trace.keep is not None:
+        k = trace.keep
+        mask = torch.from_numpy(k["mask"])
+        logits = net.keep(torch.from_numpy(k["features"]), emb["tasks"],
+                          torch.from_numpy(k["prior"]), mask, residual)
+        lsm = torch.log_softmax(logits, -1)
+        free = torch.from_numpy(k["decided"]) & (mask.sum(-1) > 1)
+        choice = torch.from_numpy(k["choice"].astype(np.int64))
+        logp = logp + torch.where(free, lsm.gather(-1, choice[..., None])[..., 0], 0.0).sum(-1)
+        ent = ent - torch.where(free, (lsm.exp() * lsm.clamp(min=-30)).sum(-1), 0.0).sum(-1)
     if trace.n_steps == 0:
         return logp, ent
     for kind in KINDS:
@@ -151,10 +180,10 @@ def trace_log_prob(net: AllocationNet, emb: dict[str, torch.Tensor], trace: Deco
         lsm = torch.log_softmax(logits, -1)
         choice = torch.from_numpy(st["choice"]).long()
         chosen = lsm.gather(-1, choice[..., None])[..., 0]
-        active = torch.from_numpy(st["active"]).float()
-        # a sub-decision with one legal choice (a forced 'keep') carries no probability mass
-        free = (mask.sum(-1) > 1).float() * active
-        logp = logp + (chosen * free).sum(0)
+        active = torch.from_numpy(st["active"])
+        # a sub-decision with one legal choice carries no probability mass
+        free = (mask.sum(-1) > 1) & active
+        logp = logp + torch.where(free, chosen, 0.0).sum(0)
         p = lsm.exp()
-        ent = ent + (-(p * lsm.clamp(min=-30)).sum(-1) * free).sum(0)
+        ent = ent + torch.where(free, -(p * lsm.clamp(min=-30)).sum(-1), 0.0).sum(0)
     return logp, ent

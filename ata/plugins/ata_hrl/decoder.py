@@ -31,9 +31,22 @@ BIN_S = 10.0
 """Width of the time bins of the cumulative busy-time grid (the utilisation projection)."""
 
 POI_FEATURES = 18
+KEEP_FEATURES = 13
 ROBOT_FEATURES = 12
 NAV_FEATURES = 12
 CLS_FEATURES = 14
+
+
+def _quiet(method):
+    """Numpy's warnings off: episodes whose decoding is over carry dummy choices (inf - inf)."""
+    import functools
+
+    @functools.wraps(method)
+    def wrapper(*args, **kwargs):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return method(*args, **kwargs)
+
+    return wrapper
 
 
 @dataclass(frozen=True)
@@ -118,6 +131,32 @@ class Decoder:
             self.prev_valid = alive
         self.steps = 0
 
+    def replay(self, kept: np.ndarray, alloc: Allocation | None = None) -> None:
+        """Book the POIs in `kept` (E, P) with their triples in `alloc` (default: the previous
+        allocation), as the robots will visit them (the robot free first goes to its nearest
+        kept POI), before any POI is decoded: the decoded POIs then follow the work the kept
+        ones give the members."""
+        prev = alloc if alloc is not None else self.previous
+        left = kept & self.left
+        owner = prev.robot
+        left &= np.isfinite(np.take_along_axis(self.robot_free, owner, axis=1))
+        E, R = self.E, self.R
+        for _ in range(self.P):
+            has = np.zeros((E, R), dtype=bool)
+            lb, lp = np.nonzero(left)
+            if lb.size == 0:
+                break
+            has[lb, owner[lb, lp]] = True
+            rs = np.where(has, self.robot_free, np.inf).argmin(axis=1)
+            act = has.any(axis=1)
+            gx = self.tx - self.robot_xy[self.e, rs, 0][:, None]
+            gy = self.ty - self.robot_xy[self.e, rs, 1][:, None]
+            dist = np.where(left & (owner == rs[:, None]), gx * gx + gy * gy, np.inf)
+            p = dist.argmin(axis=1)
+            self.commit(act, p, rs, prev.navigator[self.e, p], prev.classifier[self.e, p])
+            left[self.e[act], p[act]] = False
+        self.left &= ~kept
+
     # -- projections -----------------------------------------------------------------------------
     def fatigue_at(self) -> np.ndarray:
         """Projected F_f of every human (E, H) after the work booked so far: the estimate now,
@@ -187,6 +226,43 @@ class Decoder:
         return p, finish, begin, u, f_w, f_f
 
     # -- sub-decisions ---------------------------------------------------------------------------
+    def keep_inputs(self, expected: np.ndarray, finish: np.ndarray, changed: np.ndarray,
+                    heuristic: Allocation) -> StepInputs:
+        """Reallocation: for every POI to decide, one of three: decode it again (0), keep its
+        triple (1), or take the triple of the greedy heuristic's reallocation (2). Features of
+        the POI's expected outcome if kept (``expected`` points and ``finish`` time from the
+        projection of the allocation in force), who holds it and how loaded they are, whether
+        its robot is down or its kind or difficulty `changed` since it was planned, and whether
+        greedy changes it. The prior takes greedy's choice (-1, then +1 for greedy's outcome):
+        with its learned part off, pi_TR reallocates as greedy does. Keeping is masked where
+        the robot is down; greedy's triple where it keeps (it is the same as keeping) or names
+        a robot that is down."""
+        E, P, H = self.E, self.P, self.H
+        prev, hz = self.previous, self.horizon
+        heuristic_keeps = (heuristic.stack() == prev.stack()).all(-1)
+        cls_h = np.maximum(prev.classifier, 0)
+        by_human = prev.classifier >= 0
+        util = np.take_along_axis(self.util_now, cls_h, axis=1)
+        fat = np.take_along_axis(self.fatigue_now, cls_h, axis=1)
+        load = np.zeros((E, self.R))
+        lb, lp = np.nonzero(self.left)
+        np.add.at(load, (lb, prev.robot[lb, lp]), 1.0)
+        held = np.take_along_axis(load, prev.robot, axis=1)
+        feats = np.stack([self.prev_valid.astype(float), expected / 35.0,
+                          np.clip((finish - self.now) / hz, 0, 2),
+                          by_human.astype(float), (prev.navigator >= 0).astype(float),
+                          np.where(by_human, util, 0.0), np.where(by_human, fat, 1.0),
+                          changed.astype(float), self.points / 35.0,
+                          np.full((E, P), (hz - self.now) / hz), held / max(P, 1),
+                          np.isfinite(finish).astype(float), heuristic_keeps.astype(float)], -1)
+        heuristic_ok = np.isfinite(np.take_along_axis(self.robot_free, heuristic.robot, axis=1))
+        mask = np.stack([self.left, self.left & self.prev_valid,
+                         self.left & ~heuristic_keeps & heuristic_ok], -1)
+        prior = np.stack([np.full((E, P), -1.0), np.where(heuristic_keeps, 1.0, -1.0),
+                          np.ones((E, P))], -1)
+        return StepInputs(feats.astype(np.float32), mask, prior, self.left.any(1))
+
+    @_quiet
     def poi_inputs(self) -> StepInputs:
         """Which POI next: features relative to the robot free first (the greedy robot)."""
         E, P, s, e = self.E, self.P, self.s, self.e
@@ -268,8 +344,9 @@ class Decoder:
             prev_feats], -1)
         return StepInputs(feats.astype(np.float32), mask, prior, active)
 
+    @_quiet
     def robot_inputs(self, p: np.ndarray) -> StepInputs:
-        """Which robot for POI p: R robots (plus, when reallocating, 'keep its triple')."""
+        """Which robot for POI p."""
         E, R, s, e = self.E, self.R, self.s, self.e
         travel, arr = self._legs(e)
         arr_p = arr[e, :, p]                                                # (E, R)
@@ -291,17 +368,9 @@ class Decoder:
                       self.start.robot_type.astype(float)], -1),
             np.eye(4)[q]], -1)
         prior = is_ff.astype(float)
-        if self.previous is not None:
-            keep_ok = self.prev_valid[e, p]
-            mask = np.concatenate([mask, keep_ok[:, None]], 1)
-            keep_feats = np.zeros((E, 1, feats.shape[-1]))
-            keep_feats[:, 0, 6] = 1.0
-            feats = np.concatenate([feats, keep_feats], 1)
-            # keep, where the robot still works, is preferred over any change: pi_TR with its
-            # learned part off repairs (re-decodes only the POIs of robots seen down)
-            prior = np.concatenate([prior, np.full((E, 1), 2.0)], 1)
         return StepInputs(feats.astype(np.float32), mask, prior, mask.any(1))
 
+    @_quiet
     def nav_inputs(self, p: np.ndarray, r: np.ndarray) -> StepInputs:
         """Who drives robot r to POI p: autonomous, or one highly skilled human (index h + 1)."""
         E, H, s, e = self.E, self.H, self.s, self.e
@@ -346,9 +415,10 @@ class Decoder:
                       np.clip(rate * 20, -2, 2), util, prev_n.astype(float),
                       human.astype(float) * np.ones((E, 1))], -1),
             np.eye(4)[q]], -1)
-        return StepInputs(feats.astype(np.float32), mask, np.where(mask, rate, -1.0),
-                          np.ones(E, bool))
+        prior = np.where(mask, rate, -1.0)
+        return StepInputs(feats.astype(np.float32), mask, prior, np.ones(E, bool))
 
+    @_quiet
     def cls_inputs(self, p: np.ndarray, r: np.ndarray, n: np.ndarray) -> StepInputs:
         """Who classifies POI p's image: onboard (index 0) or a human (h + 1)."""
         E, H, s, e = self.E, self.H, self.s, self.e

@@ -22,8 +22,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from ata.plugins.ata_hrl.decoder import (CLS_FEATURES, NAV_FEATURES, POI_FEATURES,
-                                         ROBOT_FEATURES)
+from ata.plugins.ata_hrl.decoder import (CLS_FEATURES, KEEP_FEATURES, NAV_FEATURES,
+                                         POI_FEATURES, ROBOT_FEATURES)
 
 NEG = -1e9
 GROUPS = ("humans", "robots", "tasks")
@@ -31,8 +31,8 @@ I_DIMS = {"humans": 5, "robots": 3, "tasks": 7}
 S_DIMS = {"humans": 4, "robots": 5, "tasks": 7}
 KINDS = ("poi", "robot", "nav", "cls")
 FEATURES = {"poi": POI_FEATURES, "robot": ROBOT_FEATURES, "nav": NAV_FEATURES,
-            "cls": CLS_FEATURES}
-PRIOR_SCALE = {"poi": 750.0, "robot": 6.0, "nav": 750.0, "cls": 1.5}
+            "cls": CLS_FEATURES, "keep": KEEP_FEATURES}
+PRIOR_SCALE = {"poi": 750.0, "robot": 6.0, "nav": 750.0, "cls": 1.5, "keep": 3.0}
 """Initial prior scales: sampled from the prior alone, decisions stay close to greedy's."""
 
 
@@ -63,14 +63,13 @@ def sinusoid(n: int, d: int) -> torch.Tensor:
 
 
 class Encoder(nn.Module):
-    """Embeddings per member type (inherent features, plus state features when given), a type
-    and a positional embedding, then self-attention over every token."""
+    """Embeddings per member type of the inherent features, a type and a positional embedding,
+    then self-attention over every token."""
 
-    def __init__(self, cfg: NetConfig, with_state: bool):
+    def __init__(self, cfg: NetConfig):
         super().__init__()
         d = cfg.d_model
-        dims = {g: I_DIMS[g] + (S_DIMS[g] if with_state else 0) for g in GROUPS}
-        self.lin = nn.ModuleDict({g: nn.Linear(dims[g], d) for g in GROUPS})
+        self.lin = nn.ModuleDict({g: nn.Linear(I_DIMS[g], d) for g in GROUPS})
         self.type_emb = nn.Embedding(len(GROUPS), d)
         layer = nn.TransformerEncoderLayer(d, cfg.heads, 2 * d, dropout=0.0, batch_first=True)
         self.net = nn.TransformerEncoder(layer, cfg.layers, enable_nested_tensor=False)
@@ -112,17 +111,56 @@ class StepScorer(nn.Module):
         return logit.masked_fill(~mask, NEG)
 
 
+class KeepScorer(nn.Module):
+    """pi_TR's first step: for every POI, the logits of decoding it again, keeping its triple,
+    and taking the greedy heuristic's: learned residuals on ``scale * prior`` from the POI's
+    features and embedding."""
+
+    def __init__(self, cfg: NetConfig):
+        super().__init__()
+        h, d = cfg.hidden, cfg.d_model
+        self.feat = nn.Linear(KEEP_FEATURES, h)
+        self.cand = nn.Linear(d, h, bias=False)
+        self.out = nn.Sequential(nn.ReLU(), nn.Linear(h, h), nn.ReLU(), nn.Linear(h, 3))
+        self.linear = nn.Linear(KEEP_FEATURES, 3)
+        for layer in (self.out[-1], self.linear):
+            nn.init.zeros_(layer.weight)
+            nn.init.zeros_(layer.bias)
+        self.log_scale = nn.Parameter(torch.tensor(math.log(PRIOR_SCALE["keep"])))
+
+    def forward(self, feats: torch.Tensor, tasks: torch.Tensor, prior: torch.Tensor,
+                mask: torch.Tensor, residual: bool = True) -> torch.Tensor:
+        """feats (..., P, F), tasks (..., P, d), prior and mask (..., P, 3) -> logits
+        (..., P, 3): decode again, keep, greedy's."""
+        logit = self.log_scale.exp() * prior
+        if residual:
+            hid = self.feat(feats) + self.cand(tasks)
+            logit = logit + self.out(hid) + self.linear(feats)
+        return logit.masked_fill(~mask, NEG)
+
+
 class AllocationNet(nn.Module):
-    """The encoder and the four scorers of one allocation policy (ITA or pi_TR)."""
+    """The encoder and the scorers of one allocation policy: the four sub-decisions of the
+    decoder, and (pi_TR) the keep step."""
 
     def __init__(self, cfg: NetConfig, with_state: bool):
         super().__init__()
         d = cfg.d_model
-        self.encoder = Encoder(cfg, with_state)
+        self.encoder = Encoder(cfg)
         self.scorers = nn.ModuleDict({k: StepScorer(k, cfg) for k in KINDS})
         self.auto = nn.Parameter(torch.zeros(d))      # the 'autonomous' navigator's token
         self.onboard = nn.Parameter(torch.zeros(d))   # the 'onboard' classifier's token
-        self.keep = nn.Parameter(torch.zeros(d))      # 'keep the triple' (reallocation)
+        self.keep = KeepScorer(cfg) if with_state else None
+        # the state representation: the raw S and S as seen (reconstructed) side by side,
+        # embedded per token (the same for w/o.AUX, whose two halves are the raw S)
+        self.state = nn.ModuleDict({g: nn.Linear(2 * S_DIMS[g], d) for g in GROUPS}) \
+            if with_state else None
+
+    def embed(self, inherent: dict[str, torch.Tensor], raw: dict[str, torch.Tensor],
+              seen: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        """Per-token embeddings at an epoch: the encoder's of I plus the state's."""
+        return {g: inherent[g] + self.state[g](torch.cat([raw[g], seen[g]], -1))
+                for g in GROUPS}
 
     def candidates(self, kind: str, emb: dict[str, torch.Tensor]) -> torch.Tensor:
         """Candidate tokens (B, N, d) of a sub-decision."""
@@ -130,7 +168,7 @@ class AllocationNet(nn.Module):
         if kind == "poi":
             return emb["tasks"]
         if kind == "robot":
-            return torch.cat([emb["robots"], self.keep.expand(B, 1, -1)], 1)
+            return emb["robots"]
         first = self.auto if kind == "nav" else self.onboard
         return torch.cat([first.expand(B, 1, -1), emb["humans"]], 1)
 

@@ -42,11 +42,11 @@ from ata.plugins.ata_hrl import decode as D
 from ata.plugins.ata_hrl.checkpoint import (FORMAT, KIND, CheckpointError, net_from_checkpoint,
                                             read_checkpoint)
 from ata.plugins.ata_hrl.components import (AttentionITA, AuxReconstructor, CTRPolicy,
-                                            Recorder, encoder_input)
+                                            Recorder)
 from ata.plugins.ata_hrl.features import inherent_features, state_features, to_tensors
 from ata.plugins.ata_hrl.network import ATAHRLNet, FatigueCVAE, NetConfig
 from ata.plugins.ata_hrl.rewards import hierarchical_rewards
-from ata.training import TrainRun
+from ata.training import TrainRun, resolve, trained_on
 
 EVAL_SEED_OFFSET = 1_000_003
 """Held-out validation during training uses root seed ``seed`` + this."""
@@ -73,6 +73,9 @@ class ATAHRLTrainer:
         samples: int = param(8, min=2, max=256, help="samples of each scenario per step (the "
                              "shared baseline is their mean)")
         ita_steps: int = param(300, min=0, help="steps of the ITA phase")
+        ita_from: str = param("", help="take the ITA policy from this checkpoint (a path or "
+                              "builtin:NAME) and skip the ITA phase: the full method and its "
+                              "ablations can share one ITA, trained alone")
         ctr_steps: int = param(200, min=0, help="steps of the pi_C / pi_TR phase")
         lr: float = param(1e-3, min=0.0, max=1.0, help="Adam learning rate of the policies")
         entropy: float = param(0.0, min=0.0, help="entropy bonus weight (per decision)")
@@ -120,9 +123,9 @@ class ATAHRLTrainer:
                              z_dim=settings.z_dim, recon_hidden=settings.recon_hidden)
         torch.manual_seed(settings.seed)
         self.net = ATAHRLNet(self.cfg)
-        policy_params = [p for n, p in self.net.named_parameters()
-                         if not n.startswith(("fatigue.", "latency."))]
-        self.opt = torch.optim.Adam(policy_params, lr=settings.lr)
+        self.policy_params = [p for n, p in self.net.named_parameters()
+                              if not n.startswith(("fatigue.", "latency."))]
+        self.opt = torch.optim.Adam(self.policy_params, lr=settings.lr)
         self.aux_opt = torch.optim.Adam(list(self.net.fatigue.parameters())
                                         + list(self.net.latency.parameters()),
                                         lr=settings.aux_lr)
@@ -142,7 +145,10 @@ class ATAHRLTrainer:
             if n * per_step > PHASE_SPAN:
                 raise MissionError(f"[{self.name}]", "batch_size", f"{phase}: {n} steps of "
                                    f"{per_step} scenarios overrun its range of {PHASE_SPAN} ids")
-        return ranges + [(s.seed + EVAL_SEED_OFFSET, 0, s.eval_scenarios)]
+        ranges.append((s.seed + EVAL_SEED_OFFSET, 0, s.eval_scenarios))
+        if s.ita_from:               # the ITA taken from another run saw that run's scenarios
+            ranges += [r for r in trained_on(s.ita_from, KIND) if r not in ranges]
+        return ranges
 
     @property
     def name(self) -> str:
@@ -151,7 +157,7 @@ class ATAHRLTrainer:
     def phases(self) -> dict[str, int]:
         s = self.s
         return {"aux": s.aux_steps if self.trains_aux else 0,
-                "ita": s.ita_steps if self.trains_ita else 0,
+                "ita": s.ita_steps if self.trains_ita and not s.ita_from else 0,
                 "ctr": s.ctr_steps if (self.trains_cond or self.trains_tr) else 0}
 
     def total_steps(self) -> int:
@@ -166,6 +172,8 @@ class ATAHRLTrainer:
         torch.set_num_threads(self.s.threads)
         if resume:
             self.load(run.checkpoint_path)
+        elif self.s.ita_from:
+            self.take_ita(self.s.ita_from)
         report = self.train_aux()
         self.train_policy("ita")
         self.train_policy("ctr")
@@ -186,10 +194,27 @@ class ATAHRLTrainer:
                 "scenario_ranges": [list(r) for r in self.scenario_ranges()],
                 "trained": [k for k, v in (("ita", self.trains_ita), ("cond", self.trains_cond),
                                            ("tr", self.trains_tr), ("aux", self.trains_aux))
-                            if v]}
+                            if v],
+                "ita_from": self.s.ita_from}
 
     def save(self, name: str = "checkpoint.pt") -> None:
         self.run_folder.save(self.checkpoint(), name)
+
+    def take_ita(self, spec: str) -> None:
+        """The ITA network of another ATA-HRL checkpoint (one that trained its ITA)."""
+        path = resolve(spec)
+        data = read_checkpoint(path, KIND)
+        if "ita" not in data.get("trained", []):
+            raise CheckpointError(path, "trained no ITA policy (ita_from needs one that did)")
+        if data.get("config") != self.cfg.as_dict():
+            raise CheckpointError(path, f"architecture {data.get('config')} does not match "
+                                        f"the training's {self.cfg.as_dict()}")
+        ita = {k[len("ita."):]: v for k, v in data["model"].items() if k.startswith("ita.")}
+        try:
+            self.net.ita.load_state_dict(ita)
+        except RuntimeError as exc:
+            raise CheckpointError(path, "its ITA does not fit the architecture: "
+                                        f"{str(exc).splitlines()[0][:200]}") from None
 
     def load(self, path) -> None:
         data = read_checkpoint(path, KIND)
@@ -253,7 +278,10 @@ class ATAHRLTrainer:
                 self._component(mission, "condition", slots.condition)
             out["reallocation"] = ctr if self.trains_tr else \
                 self._component(mission, "policy", slots.reallocation)
-        if self.trains_aux:
+        if phase == "ita":                 # the ITA reads I only: no reconstruction needed
+            out["reconstructors"] = build_component(self.registry, mission, "reconstructor",
+                                                    "identity")
+        elif self.trains_aux:
             out["reconstructors"] = AuxReconstructor(None, mission, net=self.net)
         return out
 
@@ -425,8 +453,8 @@ class ATAHRLTrainer:
             loss = self.policy_loss(phase, rec, R)
             self.opt.zero_grad()
             loss.backward()
-            if s.grad_clip > 0:
-                torch.nn.utils.clip_grad_norm_(self.net.parameters(), s.grad_clip)
+            if s.grad_clip > 0:      # the policies' gradients only (not the reconstructors')
+                torch.nn.utils.clip_grad_norm_(self.policy_params, s.grad_clip)
             self.opt.step()
             self.counters[phase] += 1
             self.counters["episodes"] += ids.size
@@ -470,10 +498,10 @@ class ATAHRLTrainer:
             logp, ent = D.trace_log_prob(self.net.ita, emb, rec.ita)
             n = max(rec.ita.n_steps, 1)
             return self._term(R["R_ITA"], logp, ent, n, K)
-        inherent = rec.inherent
         E = R["total"].size
+        emb_i = self.net.tr.encoder(to_tensors(rec.inherent))
         if self.trains_cond and rec.cond_choice:
-            logp, ent = self._condition_log_prob(rec, inherent)
+            logp, ent = self._condition_log_prob(rec, emb_i)
             loss = loss + self._term(R["R_C"], logp, ent, len(rec.cond_choice), K)
         if self.trains_tr and rec.tr:
             logp = torch.zeros(E)
@@ -481,9 +509,8 @@ class ATAHRLTrainer:
             n = 0
             for item in rec.tr:
                 rows = torch.as_tensor(item["rows"])
-                emb = self.net.tr.encoder(encoder_input({g: v[item["rows"]]
-                                                          for g, v in inherent.items()},
-                                                         item["state"]))
+                emb = self.net.tr.embed({g: v[rows] for g, v in emb_i.items()},
+                                        to_tensors(item["raw"]), to_tensors(item["seen"]))
                 lp, en = D.trace_log_prob(self.net.tr, emb, item["trace"])
                 logp = logp.index_add(0, rows, lp)
                 ent = ent.index_add(0, rows, en)
@@ -491,14 +518,14 @@ class ATAHRLTrainer:
             loss = loss + self._term(R["R_TR"], logp, ent, max(n / max(len(rec.tr), 1), 1), K)
         return loss
 
-    def _condition_log_prob(self, rec: Recorder, inherent: dict[str, np.ndarray]
+    def _condition_log_prob(self, rec: Recorder, emb_i: dict[str, torch.Tensor]
                             ) -> tuple[torch.Tensor, torch.Tensor]:
         E = rec.cond_feats[0].shape[0]
         hidden = torch.zeros(E, self.cfg.d_model)
         logp = torch.zeros(E)
         ent = torch.zeros(E)
-        for k, state in enumerate(rec.cond_state):
-            emb = self.net.tr.encoder(encoder_input(inherent, state))
+        for k, (raw, seen) in enumerate(rec.cond_state):
+            emb = self.net.tr.embed(emb_i, to_tensors(raw), to_tensors(seen))
             pooled = torch.cat([emb[g] for g in ("humans", "robots", "tasks")], 1).mean(1)
             logit, hidden = self.net.cond(pooled, torch.as_tensor(rec.cond_feats[k]),
                                           torch.as_tensor(rec.cond_prior[k]), hidden)

@@ -1,0 +1,116 @@
+"""Training throughput of ATA-HRL: episodes per second with and without the networks, in one run.
+
+Usage: python benchmarks/bench_training.py [--setting a] [--scenarios 16] [--samples 8]
+                                           [--repeats 3]
+
+Setting (a), medium uncertainty, one torch thread, an untrained network of the shipped
+architecture; each row is the median of ``repeats`` timings of ``scenarios x samples`` episodes
+(one training step's worth):
+
+- the simulator with greedy (initial allocation and event-triggered reallocation): no network;
+- the ITA decoder on greedy's prior alone (``learned = false``), no reallocation: the decoder's
+  numpy work without the network;
+- the ITA decoder with the network, taking the mode: the network's forward passes added;
+- one ITA training step: sampled rollouts, then the update (recomputing every decision's
+  log-probability, backward, Adam);
+- one pi_C / pi_TR training step (ITA frozen), with the reconstruction: rollouts and update.
+
+Compare the ratios within one run: machines are shared and noisy.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import numpy as np
+import torch
+from rich.console import Console
+from rich.table import Table
+
+from ata.core.kernel import Simulation
+from ata.core.runner import BASELINE_MISSION, build_trainer, load_session, training_mission_for
+from ata.plugins.ata_hrl.components import AttentionITA
+from ata.plugins.ata_hrl.rewards import hierarchical_rewards
+from ata.training import TrainRun
+
+
+def timed(fn, repeats: int) -> tuple[float, dict]:
+    times, info = [], {}
+    for i in range(repeats):
+        t0 = time.perf_counter()
+        info = fn(i) or {}
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), info
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--setting", default="a")
+    parser.add_argument("--scenarios", type=int, default=16)
+    parser.add_argument("--samples", type=int, default=8)
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    B, K = args.scenarios, args.samples
+    n = B * K
+    common = [f"mission.setting='{args.setting}'", f"ata_hrl.batch_size={B}",
+              f"ata_hrl.samples={K}"]
+    session = load_session(str(training_mission_for(["ctr", "aux"])), common)
+    trainer = build_trainer(session)
+    trainer.run_folder = TrainRun("runs/bench_training", session.mission.to_toml(),
+                                  trainer.log_fields)
+    mission = trainer._mission(args.setting, 777)
+    ids = lambda i: np.repeat(np.arange(B) + 1000 * i, K)  # noqa: E731
+    greedy = load_session(str(BASELINE_MISSION), [f"mission.setting='{args.setting}'"])
+
+    def simulator(i):
+        Simulation(greedy.mission.replace(seed=777), greedy.registry, ids(i)).run()
+
+    def ita(learned: bool):
+        def run(i):
+            settings = AttentionITA.Settings(learned=learned)
+            pol = AttentionITA(settings, mission, net=trainer.net)
+            never = trainer._component(mission, "condition", "never")
+            Simulation(mission, trainer.registry, ids(i),
+                       overrides={"initial": pol, "condition": never, "reallocation": pol,
+                                  "reconstructors": trainer._component(
+                                      mission, "reconstructor", "identity")}).run()
+        return run
+
+    def step(phase: str):
+        def run(i):
+            t0 = time.perf_counter()
+            record, rec = trainer.rollout(mission, ids(i), phase, train=True)
+            t1 = time.perf_counter()
+            R = hierarchical_rewards(record, expected=True)
+            loss = trainer.policy_loss(phase, rec, R)
+            trainer.opt.zero_grad()
+            loss.backward()
+            trainer.opt.step()
+            return {"rollout": t1 - t0, "update": time.perf_counter() - t1}
+        return run
+
+    rows = [("simulator + greedy (no network)", simulator),
+            ("ITA decoder, prior alone (no network)", ita(False)),
+            ("ITA decoder with the network (mode)", ita(True)),
+            ("ITA training step (rollout + update)", step("ita")),
+            ("pi_C / pi_TR training step (rollout + update)", step("ctr"))]
+    table = Table(title=f"ATA-HRL training throughput, setting ({args.setting}), {B} scenarios x "
+                        f"{K} samples = {n} episodes, 1 torch thread")
+    for col in ("what", "seconds", "episodes/s", "x simulator", "rollout s", "update s"):
+        table.add_column(col, justify="left" if col == "what" else "right")
+    base = None
+    for label, fn in rows:
+        seconds, info = timed(fn, args.repeats)
+        rate = n / seconds
+        base = base or rate
+        table.add_row(label, f"{seconds:.2f}", f"{rate:.1f}", f"{rate / base:.2f}",
+                      f"{info['rollout']:.2f}" if "rollout" in info else "-",
+                      f"{info['update']:.2f}" if "update" in info else "-")
+    Console(width=160).print(table)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,280 @@
+"""ATA-HRL (ata/plugins/ata_hrl): the capacity-aware decoder checked by hand on a tiny team,
+the shared baseline, the networks against their priors, the trainer as a component, resume,
+checkpoints and the state reconstruction."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from _support import train, whole_and_killed
+from ata.core.errors import MissionError
+from ata.core.kernel import Simulation
+from ata.core.runner import (BASELINE_MISSION, build_trainer, load_session,
+                             training_mission_for)
+from ata.core.state import Allocation
+from ata.plugins import tables
+from ata.plugins.ata_hrl.components import AttentionITA, AuxReconstructor, CTRPolicy
+from ata.plugins.ata_hrl.decoder import DecodeSettings, Decoder
+from ata.plugins.ata_hrl.network import ATAHRLNet, NetConfig
+from ata.plugins.ata_hrl.trainer import shared_baseline_advantage
+from ata.plugins.policies.plan import PlanStart
+from ata.training import CheckpointError, read_checkpoint
+
+TINY = ["mission.setting='custom'", "mission.humans=3", "mission.robots=4", "mission.tasks=12",
+        "mission.horizon_s=600", "ata_hrl.batch_size=2", "ata_hrl.samples=2",
+        "ata_hrl.ita_steps=2", "ata_hrl.ctr_steps=2", "ata_hrl.aux_steps=3",
+        "ata_hrl.aux_batches=1", "ata_hrl.eval_every=1", "ata_hrl.eval_scenarios=2",
+        "ata_hrl.checkpoint_every=1", "ata_hrl.d_model=16", "ata_hrl.hidden=16",
+        "ata_hrl.recon_hidden=8"]
+
+
+def session(*extra, plugins=("ctr", "aux")):
+    return load_session(str(training_mission_for(list(plugins))), [*TINY, *extra])
+
+
+# --- the decoder, by hand --------------------------------------------------------------------------
+
+def tiny_start(horizon=50.0):
+    """Two POIs, two humans (0 highly skilled, 1 low), a UAV and a UGV at the base (1000, 1000).
+    POI 0: 80 m east, ground, low (15 points); POI 1: 240 m north, air, high (35 points)."""
+    return PlanStart(
+        now=0.0, horizon=horizon,
+        task_xy=np.array([[[1080.0, 1000.0], [1000.0, 1240.0]]]),
+        kind=np.array([[tables.GROUND, tables.AIR]]), diff=np.array([[0, 2]]),
+        points=np.array([[15.0, 35.0]]), open=np.ones((1, 2), bool),
+        eta=np.array([[0.6, 0.4]]), lam=np.array([[0.6, 0.3]]), skill=np.array([[2, 0]]),
+        hours=np.zeros((1, 2)), human_free=np.zeros((1, 2)),
+        robot_type=np.array([[tables.UAV, tables.UGV]]), speed=np.array([[8.0, 3.0]]),
+        robot_free=np.zeros((1, 2)), robot_xy=np.full((1, 2, 2), 1000.0),
+        robot_at=np.full((1, 2), -1))
+
+
+def test_decoder_masks_and_updates_the_members_after_each_choice():
+    dec = Decoder(tiny_start(), np.ones((1, 2), bool), np.ones((1, 2)), np.zeros((1, 2)),
+                  DecodeSettings())
+    poi = dec.poi_inputs()
+    assert poi.mask.tolist() == [[True, True]] and dec.r_ff.tolist() == [0]
+    robots = dec.robot_inputs(np.array([0]))
+    assert robots.mask.tolist() == [[True, True]]
+    assert robots.prior.tolist() == [[1.0, 0.0]]            # greedy's robot: the one free first
+    nav = dec.nav_inputs(np.array([0]), np.array([0]))
+    # autonomous, human 0 (highly skilled); human 1 (low skill) may not navigate
+    assert nav.mask.tolist() == [[True, True, False]]
+    # POI 0 to the UAV, navigated by human 0, classified by human 1:
+    #   leg 80 m at 8 * 1.5 m/s + 3 s capture = 9.6667 s, human 0 busy 0 .. 9.6667;
+    #   image quality UAV / ground / high-skill navigator = Upper-Medium (2): t_bar 25 s;
+    #   human 1 classifies 9.6667 .. 34.6667
+    dec.commit(np.array([True]), np.array([0]), np.array([0]), np.array([0]), np.array([1]))
+    leg = 80.0 / 12.0 + 3.0
+    assert dec.robot_free[0].tolist() == pytest.approx([leg, 0.0])
+    assert dec.robot_xy[0, 0].tolist() == [1080.0, 1000.0]
+    assert dec.human_free[0].tolist() == pytest.approx([leg, leg + 25.0])
+    assert dec.booked[0].tolist() == pytest.approx([leg, 25.0])
+    # human 1's projected utilisation at t = 100: 25 busy s of the 100 elapsed
+    u = dec.utilisation_at(np.full((1, 1, 2), 100.0))
+    assert u[0, 0].tolist() == pytest.approx([leg / 100.0, 0.25])
+    # POI 1 next: the UGV is free first now, but from the base it needs 240/3 + 3 = 83 s > 50:
+    # only the UAV reaches it in time (from POI 0: sqrt(80^2 + 240^2) / 8 + 3 after 9.67 s)
+    poi = dec.poi_inputs()
+    assert poi.mask.tolist() == [[False, True]] and dec.r_ff.tolist() == [1]
+    robots = dec.robot_inputs(np.array([1]))
+    assert robots.mask.tolist() == [[True, False]]
+    cls = dec.cls_inputs(np.array([1]), np.array([0]), np.array([-1]))
+    # onboard: UAV / air / autonomous = Upper-Medium, P_rc[UM, high] = 0.3
+    assert cls.features[0, 0, 1] == pytest.approx(0.3)
+    dec.commit(np.array([True]), np.array([1]), np.array([0]), np.array([-1]), np.array([-1]))
+    arrive = leg + math.hypot(80.0, 240.0) / 8.0 + 3.0
+    assert dec.robot_free[0, 0] == pytest.approx(arrive)
+    assert not dec.poi_inputs().active.any()
+    alloc = dec.finish()
+    assert alloc.stack()[0].tolist() == [[0, 0, 1], [0, -1, -1]]
+
+
+def test_replay_books_the_kept_pois_in_route_order_and_rebriefs_on_a_change():
+    start = tiny_start(horizon=1800.0)
+    prev = Allocation(np.array([[0, 0]]), np.array([[-1, -1]]), np.array([[1, 1]]))
+    dec = Decoder(start, np.ones((1, 2), bool), np.ones((1, 2)), np.zeros((1, 2)),
+                  DecodeSettings(rebrief_s=20.0), previous=prev)
+    dec.replay(np.array([[True, False]]))
+    # POI 0 kept: the UAV flies 80/8 + 3 = 13 s; human 1 classifies it 13 .. 13 + t_bar[Medium,
+    # low] 35 = 48 (quality Medium: UAV / ground / autonomous)
+    assert dec.robot_free[0, 0] == pytest.approx(13.0)
+    assert dec.human_free[0].tolist() == pytest.approx([0.0, 48.0])
+    assert dec.left.tolist() == [[False, True]]
+    # POI 1 planned again onboard: human 1 loses it, a re-brief of 20 s after its work (48)
+    dec.commit(np.array([True]), np.array([1]), np.array([0]), np.array([-1]), np.array([-1]))
+    assert dec.human_free[0, 1] == pytest.approx(68.0) and dec.touched[0].tolist() == [False,
+                                                                                       True]
+
+
+def test_first_reallocation_step_follows_greedy_and_masks_down_robots():
+    # pi_TR's first step, per POI: decode again (0), keep (1), greedy's triple (2)
+    start = tiny_start(horizon=1800.0)
+    start.robot_free[0, 1] = np.inf                     # the UGV is seen down
+    prev = Allocation(np.array([[0, 1]]), np.array([[-1, -1]]), np.array([[-1, 1]]))
+    dec = Decoder(start, np.ones((1, 2), bool), np.ones((1, 2)), np.zeros((1, 2)),
+                  DecodeSettings(), previous=prev)
+    # greedy keeps POI 0 and moves POI 1 (held by the robot that is down) to the UAV
+    greedy = Allocation(np.array([[0, 0]]), np.array([[-1, -1]]), np.array([[-1, 1]]))
+    first = dec.keep_inputs(np.zeros((1, 2)), np.full((1, 2), np.inf), np.zeros((1, 2), bool),
+                            greedy)
+    assert dec.prev_valid.tolist() == [[True, False]]
+    # POI 0: keeping is greedy's choice (greedy's triple is the same: masked); POI 1: its
+    # robot is down, so no keeping; greedy's triple is the prior
+    assert first.mask[0].tolist() == [[True, True, False], [True, False, True]]
+    assert first.prior[0].tolist() == [[-1.0, 1.0, 1.0], [-1.0, -1.0, 1.0]]
+    assert first.features[0, :, 0].tolist() == [1.0, 0.0]      # robot up
+    assert first.features[0, :, 3].tolist() == [0.0, 1.0]      # classified by a human
+    assert first.features[0, :, 12].tolist() == [1.0, 0.0]     # greedy keeps it
+
+
+# --- the shared baseline and the networks ----------------------------------------------------------
+
+def test_shared_baseline_advantages_sum_to_zero_per_scenario():
+    rewards = np.array([10.0, 12.0, 11.0, 3.0, -1.0, 0.0, 4.0, 9.0])   # 2 scenarios x 4 samples
+    adv = shared_baseline_advantage(rewards, 4).reshape(2, 4)
+    np.testing.assert_allclose(adv.sum(axis=1), 0.0, atol=1e-12)
+    # scenario 0: mean 9; scenario 1: mean 3
+    np.testing.assert_allclose(adv[0], [1.0, 3.0, 2.0, -6.0])
+    np.testing.assert_allclose(adv[1], [-4.0, -3.0, 1.0, 6.0])
+
+
+def components(s, net, learned=True, sample=False):
+    st = AttentionITA.Settings(learned=learned, sample=sample)
+    ita = AttentionITA(st, s.mission, net=net)
+    ctr = CTRPolicy(CTRPolicy.Settings(learned=learned, sample=sample), s.mission, net=net)
+    return {"initial": ita, "condition": ctr, "reallocation": ctr,
+            "reconstructors": AuxReconstructor(None, s.mission, net=net)}
+
+
+def test_an_untrained_network_decides_as_its_prior_alone():
+    # the scorers' learned parts start at zero: with the learned part on or off, the same
+    # decisions (pi_C: the on_event rule; pi_TR: repair; the ITA: greedy's choices)
+    s = session()
+    net = ATAHRLNet(NetConfig(d_model=16, hidden=16, recon_hidden=8))
+    runs = [Simulation(s.mission, s.registry, [0, 1, 2], overrides=components(s, net, learned))
+            .run() for learned in (True, False)]
+    np.testing.assert_array_equal(runs[0].allocations, runs[1].allocations)
+    np.testing.assert_array_equal(runs[0].reallocated, runs[1].reallocated)
+    assert runs[0].reallocated.any()
+
+
+def test_sampled_decisions_do_not_depend_on_the_batch():
+    s = session()
+    torch.manual_seed(0)
+    net = ATAHRLNet(NetConfig(d_model=16, hidden=16, recon_hidden=8))
+
+    def run(ids):
+        record = Simulation(s.mission, s.registry, ids,
+                            overrides=components(s, net, sample=True)).run()
+        return record.allocations, record.total
+
+    alloc_batch, total_batch = run([3, 4, 5])
+    alloc_alone, total_alone = run([5])
+    np.testing.assert_array_equal(alloc_batch[2], alloc_alone[0])
+    assert total_batch[2] == total_alone[0]
+
+
+# --- the trainer as a component ----------------------------------------------------------------------
+
+def test_the_trainer_trains_what_the_slots_hold():
+    full = build_trainer(session())
+    assert (full.trains_ita, full.trains_cond, full.trains_tr, full.trains_aux) == \
+        (True, True, True, True)
+    wo_c = build_trainer(session("components.condition='always'"))
+    assert (wo_c.trains_cond, wo_c.trains_tr) == (False, True)
+    wo_aux = build_trainer(session(plugins=("ctr",)))
+    assert wo_aux.mission.slots.reconstructors == ["identity"] and not wo_aux.trains_aux
+    assert wo_aux.phases()["aux"] == 0
+    ita = build_trainer(session(plugins=("ita",)))
+    assert (ita.trains_ita, ita.trains_cond, ita.trains_tr) == (True, False, False)
+    with pytest.raises(MissionError, match="nothing to train"):
+        build_trainer(session("components.initial='greedy'",
+                              "components.condition='never'",
+                              "components.reallocation='greedy'", plugins=("ita",)))
+    with pytest.raises(MissionError, match="names no trainer"):
+        build_trainer(load_session(str(BASELINE_MISSION)))
+    # a trainer's table without the trainer is refused like any unchosen component's
+    with pytest.raises(MissionError, match=r"\[ata_hrl\]: names no chosen component"):
+        session("components.trainer='none'")
+
+
+def test_training_run_of_wo_c_writes_checkpoints_that_run_as_components(tmp_path):
+    s = session("components.condition='always'")
+    trainer = train(s, tmp_path)
+    assert trainer.counters == {"aux": 3, "ita": 2, "ctr": 2, "episodes": 16}
+    data = torch.load(tmp_path / "checkpoint.pt", weights_only=True)
+    assert data["kind"] == "ata_hrl" and data["trained"] == ["ita", "tr", "aux"]
+    assert set(data) >= {"model", "optimizer", "aux_optimizer", "rng", "counters", "config",
+                         "mission", "scenario_ranges"}
+    rows = (tmp_path / "log.csv").read_text().splitlines()
+    assert rows[0].startswith("phase,step") and sum(r.startswith("ctr,") for r in rows) == 2
+    # the trained network runs from its file, and reports the scenarios it was trained on
+    best = tmp_path / "best.pt"
+    run = load_session(str(tmp_path / "mission.resolved.toml"),
+                       ["mission.scenarios=2", *[f"{c}.checkpoint='{best}'"
+                                                 for c in ("attention", "ctr", "aux")]])
+    sim = Simulation(run.mission, run.registry, [2 ** 40, 2 ** 40 + 1])
+    ranges = [r for rs in sim.pm.hook.ata_trained_on() for r in rs]
+    assert (12345, 10_000_000, 20_000_000) in ranges
+    assert sim.run().reallocated[:, 1:].all()
+
+
+@pytest.mark.parametrize("phase, step", [("aux", "2"), ("ita", "1"), ("ctr", "2")])
+def test_resume_after_kill_ends_with_the_same_weights(tmp_path, phase, step):
+    whole, resumed = whole_and_killed(session(), tmp_path, phase, step)
+    assert resumed.counters == whole.counters
+    for (k, a), (_, b) in zip(whole.net.state_dict().items(), resumed.net.state_dict().items()):
+        assert torch.equal(a, b), k
+
+
+# --- checkpoints -------------------------------------------------------------------------------------
+
+def test_checkpoints_of_another_method_or_broken_are_refused(tmp_path, cli):
+    trainer = train(session(*["ata_hrl.ita_steps=0", "ata_hrl.ctr_steps=0",
+                              "ata_hrl.aux_steps=0"]), tmp_path / "run")
+    good = tmp_path / "run" / "best.pt"
+    data = read_checkpoint(good, "ata_hrl")
+    assert data["counters"] == trainer.counters
+    empty = tmp_path / "empty.pt"
+    empty.write_bytes(b"")
+    cut = tmp_path / "cut.pt"
+    cut.write_bytes(good.read_bytes()[:200])
+    foreign = tmp_path / "foreign.pt"
+    torch.save({**data, "kind": "tr_pomdp"}, foreign)
+    for path, message in ((empty, "cannot be read as a checkpoint"),
+                          (cut, "cannot be read as a checkpoint"),
+                          (foreign, "is a checkpoint of 'tr_pomdp', not of 'ata_hrl'"),
+                          (tmp_path / "missing.pt", "no such checkpoint")):
+        with pytest.raises(CheckpointError, match=message):
+            read_checkpoint(path, "ata_hrl")
+        # through the CLI: one clear line, exit 2
+        res = cli("run", str(tmp_path / "run" / "mission.resolved.toml"), "--set",
+                  "mission.scenarios=1", "--set", f"attention.checkpoint='{path}'",
+                  "--set", f"ctr.checkpoint='{good}'", "--set", f"aux.checkpoint='{good}'",
+                  "--quiet", "-o", tmp_path / "out")
+        assert res.exit_code == 2, res.output
+        assert message.split(",")[0] in " ".join(res.output.split())
+        assert "Traceback" not in res.output
+
+
+# --- the auxiliary reconstruction -------------------------------------------------------------------
+
+def test_reconstructors_beat_the_noisy_and_stale_observations(tmp_path):
+    s = session("ata_hrl.aux_batches=2", "ata_hrl.aux_steps=150", "ata_hrl.batch_size=8",
+                "ata_hrl.recon_hidden=16", "mission.uncertainty='high'",
+                "ata_hrl.ita_steps=0", "ata_hrl.ctr_steps=0")
+    trainer = build_trainer(s)
+    from ata.training import TrainRun
+    trainer.run_folder = TrainRun(tmp_path, s.mission.to_toml(), trainer.log_fields)
+    before = trainer.aux_report()
+    after = trainer.train_aux()             # held-out scenarios, not trained on
+    # the cVAE's fatigue is closer to the truth than the noisy observation (variance 0.2)
+    assert after["fatigue_mse"] < 0.5 * after["fatigue_mse_raw"]
+    # the stacked GRUs' robot rows are closer to the truth than the stale observed rows
+    assert after["robots_mse"] < after["robots_mse_raw"]
+    assert after["fatigue_mse"] < before["fatigue_mse"]
