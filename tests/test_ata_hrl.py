@@ -212,7 +212,8 @@ def test_training_run_of_wo_c_writes_checkpoints_that_run_as_components(tmp_path
     assert set(data) >= {"model", "optimizer", "aux_optimizer", "rng", "counters", "config",
                          "mission", "scenario_ranges"}
     rows = (tmp_path / "log.csv").read_text().splitlines()
-    assert rows[0].startswith("phase,step") and sum(r.startswith("ctr,") for r in rows) == 2
+    # the CTR phase: its untrained parts validated at step 0, then two steps
+    assert rows[0].startswith("phase,step") and sum(r.startswith("ctr,") for r in rows) == 3
     # the trained network runs from its file, and reports the scenarios it was trained on
     best = tmp_path / "best.pt"
     run = load_session(str(tmp_path / "mission.resolved.toml"),
@@ -222,6 +223,31 @@ def test_training_run_of_wo_c_writes_checkpoints_that_run_as_components(tmp_path
     ranges = [r for rs in sim.pm.hook.ata_trained_on() for r in rs]
     assert (12345, 10_000_000, 20_000_000) in ranges
     assert sim.run().reallocated[:, 1:].all()
+
+
+def test_ita_from_shares_an_ita_and_init_from_trains_on(tmp_path):
+    first = train(session(plugins=("ita",)), tmp_path / "ita")
+    src = tmp_path / "ita" / "best.pt"
+    # ita_from: the same ITA weights, no ITA phase, and the source's scenarios reported
+    shared = train(session("components.condition='always'", f"ata_hrl.ita_from='{src}'",
+                           "ata_hrl.ctr_steps=1"), tmp_path / "wo_c")
+    assert shared.counters["ita"] == 0 and shared.counters["ctr"] == 1
+    best_ita = read_checkpoint(src, "ata_hrl")["model"]
+    for k, v in shared.net.ita.state_dict().items():
+        assert torch.equal(v, best_ita[f"ita.{k}"]), k
+    assert set(first.scenario_ranges()) <= set(shared.scenario_ranges())
+    # init_from: every network as the source's, then the ITA phase goes on from there
+    more = build_trainer(session(f"ata_hrl.init_from='{src}'", "ata_hrl.ita_steps=1",
+                                 plugins=("ita",)))
+    from ata.training import TrainRun
+    more.run_folder = TrainRun(tmp_path / "more", more.mission.to_toml(), more.log_fields)
+    more.take_ita(str(src), whole=True)
+    assert all(torch.equal(v, best_ita[k]) for k, v in more.net.state_dict().items())
+    # a checkpoint that trained no ITA cannot lend one
+    no_ita = train(session("components.initial='greedy'", "components.condition='ctr'",
+                           "ata_hrl.ctr_steps=1", plugins=("ctr", "aux")), tmp_path / "no_ita")
+    with pytest.raises(CheckpointError, match="trained no ITA"):
+        no_ita.take_ita(str(tmp_path / "no_ita" / "best.pt"))
 
 
 @pytest.mark.parametrize("phase, step", [("aux", "2"), ("ita", "1"), ("ctr", "2")])

@@ -391,6 +391,15 @@ def test_report_table_and_probabilities(tmp_path):
     other = rep.summarize(rep.read_results(tmp_path), reference="greedy")
     flipped = {(c.method, c.setting, c.level): c for c in other.cells}
     assert flipped[("ATA-HRL", "a", "low")].beats == 0.375
+    # the paired difference, matched by scenario id (greedy's rows are reversed at (a, low)):
+    # ATA-HRL - greedy = (10 - 5, 20 - 20, 30 - 35, 40 - 10) = (5, 0, -5, 30), mean 7.5, its
+    # bootstrap CI within the differences' range
+    mean, low, high = cells[("greedy", "a", "low")].diff
+    assert mean == 7.5 and -5.0 <= low < mean < high <= 30.0
+    assert all(math.isnan(x) for x in cells[("ATA-HRL", "a", "low")].diff)
+    header, rows = rep.table_rows(report, "a", "low")
+    assert "ATA-HRL - method, paired [95% CI]" in header
+    assert rows[1][6].startswith("+7.5 [")
 
 
 def test_report_command_writes_markdown_and_figures(cli, tmp_path):

@@ -2,9 +2,10 @@
 
 Per (team setting, uncertainty level) and method: the mean total team performance with its 95%
 percentile-bootstrap confidence interval over scenarios, the mean fraction of the upper bound U,
-the share of POIs classified, and P(reference beats method): the share of paired scenarios (the
-same setting, level, seed and scenario id) where the reference method scores more, ties counting
-half.
+the share of POIs classified, the paired difference reference - method on the same scenarios
+(the same setting, level, seed and scenario id) with its 95% bootstrap confidence interval, and
+P(reference beats method): the share of those paired scenarios where the reference scores more,
+ties counting half.
 """
 
 from __future__ import annotations
@@ -148,6 +149,7 @@ class Cell:
     classified_share: float
     reallocations: float
     beats: float          # P(reference beats this method); NaN for the reference itself
+    diff: tuple[float, float, float] = (float("nan"),) * 3   # reference - method: mean, CI
 
 
 @dataclass
@@ -197,16 +199,18 @@ def summarize(res: Results, reference: str | None = None, resamples: int = RESAM
                 if not sel.any():
                     continue
                 mean, low, high = bootstrap_ci(c["score"][sel], resamples, seed=seed)
-                beats = nan
+                beats, diff = nan, (nan, nan, nan)
                 if method != reference and ref.any():
-                    beats = beat_probability(*_paired(res, ref, sel))
+                    a, b = _paired(res, ref, sel)
+                    beats = beat_probability(a, b)
+                    diff = bootstrap_ci(a - b, resamples, seed=seed)
                 realloc = c.get("reallocations")
                 report.cells.append(Cell(
                     method=method, setting=setting, level=level, n=int(sel.sum()), mean=mean,
                     low=low, high=high, fraction_of_u=float(np.nanmean(c["fraction_of_u"][sel])),
                     classified_share=float(np.nanmean(c["classified_share"][sel])),
                     reallocations=float(np.nanmean(realloc[sel])) if realloc is not None
-                    else nan, beats=beats))
+                    else nan, beats=beats, diff=diff))
     return report
 
 
@@ -218,20 +222,25 @@ def _fmt(x: float, spec: str, dash: str = "-") -> str:
 def table_rows(report: Report, setting: str, level: str,
                short: bool = False) -> tuple[list[str], list[list[str]]]:
     """Header and rows of one (setting, level) table, as text (`short`: terse headers)."""
+    ref = report.reference
     if short:
         header = ["method", "n", "score [95% CI]", "of U", "classified", "realloc.",
-                  f"P({report.reference} beats)"]
+                  f"{ref} - method [95% CI]", f"P({ref} beats)"]
     else:
         header = ["method", "scenarios", "total team performance [95% CI]", "fraction of U",
-                  "POIs classified", "reallocations", f"P({report.reference} beats)"]
+                  "POIs classified", "reallocations", f"{ref} - method, paired [95% CI]",
+                  f"P({ref} beats)"]
     rows = []
     for cell in report.table(setting, level):
+        d, lo, hi = cell.diff
         rows.append([cell.method, str(cell.n),
                      f"{cell.mean:.1f} [{cell.low:.1f}, {cell.high:.1f}]",
                      _fmt(cell.fraction_of_u, ".3f"),
                      _fmt(100 * cell.classified_share, ".1f") + "%"
                      if not math.isnan(cell.classified_share) else "-",
-                     _fmt(cell.reallocations, ".2f"), _fmt(cell.beats, ".3f")])
+                     _fmt(cell.reallocations, ".2f"),
+                     "-" if math.isnan(d) else f"{d:+.1f} [{lo:+.1f}, {hi:+.1f}]",
+                     _fmt(cell.beats, ".3f")])
     return header, rows
 
 
@@ -243,9 +252,10 @@ def markdown(report: Report) -> str:
     lines = ["# Evaluation report", "",
              f"Mean total team performance with its 95% percentile-bootstrap confidence interval "
              f"over scenarios, the mean fraction of the upper bound U, the mean share of POIs "
-             f"classified and of reallocations per scenario, and P({report.reference} beats): "
-             f"the share of paired scenarios where {report.reference} scores more (ties count "
-             f"half).", ""]
+             f"classified and of reallocations per scenario, the paired difference "
+             f"{report.reference} - method on the same scenarios with its 95% bootstrap "
+             f"confidence interval, and P({report.reference} beats): the share of paired "
+             f"scenarios where {report.reference} scores more (ties count half).", ""]
     for setting, level in report.groups():
         header, rows = table_rows(report, setting, level)
         lines += [f"## {title(setting, level).capitalize()}", "",

@@ -11,6 +11,7 @@ docs).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -169,10 +170,12 @@ class CTRPolicy(LearnedComponent):
         self.prev_attrs: np.ndarray | None = None
         self.last_realloc: np.ndarray | None = None
         self.planned_attrs: np.ndarray | None = None    # (B, P, 2) attributes planned with
-        # greedy's reallocation, whose choice is pi_TR's prior (its settings where the mission
-        # has a greedy table)
+        # greedy's reallocation, keeping or repairing (not re-planning in full, which would
+        # replace the ITA's allocation by greedy's), whose choice is pi_TR's prior (greedy's
+        # settings where the mission has a greedy table)
         greedy = mission.component_settings.get("greedy") if mission is not None else None
-        self.greedy = GreedyPolicy(greedy or GreedyPolicy.Settings(), mission)
+        self.greedy = GreedyPolicy(dataclasses.replace(greedy or GreedyPolicy.Settings(),
+                                                       replan_in_full=False), mission)
         self.greedy_attrs: np.ndarray | None = None    # greedy's own memory, as if alone
 
     def _observe(self, ctx: DecisionContext) -> None:

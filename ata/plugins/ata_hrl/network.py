@@ -32,7 +32,7 @@ S_DIMS = {"humans": 4, "robots": 5, "tasks": 7}
 KINDS = ("poi", "robot", "nav", "cls")
 FEATURES = {"poi": POI_FEATURES, "robot": ROBOT_FEATURES, "nav": NAV_FEATURES,
             "cls": CLS_FEATURES, "keep": KEEP_FEATURES}
-PRIOR_SCALE = {"poi": 750.0, "robot": 6.0, "nav": 750.0, "cls": 1.5, "keep": 3.0}
+PRIOR_SCALE = {"poi": 750.0, "robot": 6.0, "nav": 750.0, "cls": 1.5, "keep": 1.5}
 """Initial prior scales: sampled from the prior alone, decisions stay close to greedy's."""
 
 
@@ -209,7 +209,7 @@ class ConditionNet(nn.Module):
         self.head = nn.Sequential(nn.Linear(d + COND_FEATURES, h), nn.ReLU(), nn.Linear(h, 1))
         nn.init.zeros_(self.head[-1].weight)
         nn.init.zeros_(self.head[-1].bias)
-        self.log_scale = nn.Parameter(torch.tensor(math.log(3.0)))
+        self.log_scale = nn.Parameter(torch.tensor(math.log(1.5)))
 
     def forward(self, pooled: torch.Tensor, feats: torch.Tensor, prior: torch.Tensor,
                 hidden: torch.Tensor, residual: bool = True) -> tuple[torch.Tensor, torch.Tensor]:

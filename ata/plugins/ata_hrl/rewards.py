@@ -59,3 +59,27 @@ def hierarchical_rewards(record: EpisodeRecord, expected: bool = False) -> dict[
             "R_ITA": total - 0.2 * from_ita,
             "R_C": total + delta - 0.4 * n_realloc / T,
             "R_TR": total + delta - 0.2 * step_change / T}
+
+
+def rewards_to_go(record: EpisodeRecord, expected: bool = False) -> dict[str, np.ndarray]:
+    """R_C and R_TR from each epoch on, (B, T): each reward is a sum of per-epoch terms (the
+    points of epoch t', its Delta r if it reallocated, its share of the penalty), and a decision
+    at epoch t is credited with the terms of epochs t' >= t only, which it can change; the
+    sum at t = 1 is the reward of ``hierarchical_rewards`` less epoch 0's points. The same
+    rewards, without the noise of what happened before the decision."""
+    r = record.r_expected if expected else record.r_perf
+    B, T = r.shape
+    realloc = record.reallocated.copy()
+    realloc[:, 0] = False
+    epochs = np.where(realloc, np.arange(T), 0)
+    last = np.maximum.accumulate(epochs, axis=1)
+    prev = np.concatenate([np.zeros((B, 1), dtype=int), last[:, :-1]], axis=1)
+    delta = np.where(realloc, r - np.take_along_axis(r, prev, axis=1), 0.0)
+    change = np.zeros((B, T))
+    for t in range(1, T):
+        if realloc[:, t].any():
+            change[:, t] = np.where(realloc[:, t], frobenius_change(_alloc(record, t),
+                                                                   _alloc(record, t - 1)), 0.0)
+    to_go = lambda x: np.flip(np.cumsum(np.flip(x, 1), 1), 1)  # noqa: E731
+    return {"R_C": to_go(r + delta - 0.4 * realloc / T),
+            "R_TR": to_go(r + delta - 0.2 * change / T)}

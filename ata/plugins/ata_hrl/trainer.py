@@ -45,7 +45,7 @@ from ata.plugins.ata_hrl.components import (AttentionITA, AuxReconstructor, CTRP
                                             Recorder)
 from ata.plugins.ata_hrl.features import inherent_features, state_features, to_tensors
 from ata.plugins.ata_hrl.network import ATAHRLNet, FatigueCVAE, NetConfig
-from ata.plugins.ata_hrl.rewards import hierarchical_rewards
+from ata.plugins.ata_hrl.rewards import hierarchical_rewards, rewards_to_go
 from ata.training import TrainRun, resolve, trained_on
 
 EVAL_SEED_OFFSET = 1_000_003
@@ -76,8 +76,13 @@ class ATAHRLTrainer:
         ita_from: str = param("", help="take the ITA policy from this checkpoint (a path or "
                               "builtin:NAME) and skip the ITA phase: the full method and its "
                               "ablations can share one ITA, trained alone")
+        init_from: str = param("", help="start every network from this checkpoint (a path or "
+                               "builtin:NAME) and train on from there (another team setting, "
+                               "say)")
         ctr_steps: int = param(200, min=0, help="steps of the pi_C / pi_TR phase")
-        lr: float = param(1e-3, min=0.0, max=1.0, help="Adam learning rate of the policies")
+        lr: float = param(1e-3, min=0.0, max=1.0, help="Adam learning rate of the ITA phase")
+        ctr_lr: float = param(3e-3, min=0.0, max=1.0, help="Adam learning rate of the pi_C / "
+                              "pi_TR phase")
         entropy: float = param(0.0, min=0.0, help="entropy bonus weight (per decision)")
         self_imitation: float = param(0.0, min=0.0, help="weight of the pull towards each "
                                       "scenario's best sample (per decision)")
@@ -146,8 +151,9 @@ class ATAHRLTrainer:
                 raise MissionError(f"[{self.name}]", "batch_size", f"{phase}: {n} steps of "
                                    f"{per_step} scenarios overrun its range of {PHASE_SPAN} ids")
         ranges.append((s.seed + EVAL_SEED_OFFSET, 0, s.eval_scenarios))
-        if s.ita_from:               # the ITA taken from another run saw that run's scenarios
-            ranges += [r for r in trained_on(s.ita_from, KIND) if r not in ranges]
+        for other in (s.ita_from, s.init_from):   # what another run's networks saw
+            if other:
+                ranges += [r for r in trained_on(other, KIND) if r not in ranges]
         return ranges
 
     @property
@@ -172,8 +178,11 @@ class ATAHRLTrainer:
         torch.set_num_threads(self.s.threads)
         if resume:
             self.load(run.checkpoint_path)
-        elif self.s.ita_from:
-            self.take_ita(self.s.ita_from)
+        else:
+            if self.s.init_from:
+                self.take_ita(self.s.init_from, whole=True)
+            if self.s.ita_from:
+                self.take_ita(self.s.ita_from)
         report = self.train_aux()
         self.train_policy("ita")
         self.train_policy("ctr")
@@ -195,25 +204,28 @@ class ATAHRLTrainer:
                 "trained": [k for k, v in (("ita", self.trains_ita), ("cond", self.trains_cond),
                                            ("tr", self.trains_tr), ("aux", self.trains_aux))
                             if v],
-                "ita_from": self.s.ita_from}
+                "ita_from": self.s.ita_from, "init_from": self.s.init_from}
 
     def save(self, name: str = "checkpoint.pt") -> None:
         self.run_folder.save(self.checkpoint(), name)
 
-    def take_ita(self, spec: str) -> None:
-        """The ITA network of another ATA-HRL checkpoint (one that trained its ITA)."""
+    def take_ita(self, spec: str, whole: bool = False) -> None:
+        """The ITA network of another ATA-HRL checkpoint (one that trained its ITA), or, with
+        `whole`, every network of it."""
         path = resolve(spec)
         data = read_checkpoint(path, KIND)
-        if "ita" not in data.get("trained", []):
+        if not whole and "ita" not in data.get("trained", []):
             raise CheckpointError(path, "trained no ITA policy (ita_from needs one that did)")
         if data.get("config") != self.cfg.as_dict():
             raise CheckpointError(path, f"architecture {data.get('config')} does not match "
                                         f"the training's {self.cfg.as_dict()}")
-        ita = {k[len("ita."):]: v for k, v in data["model"].items() if k.startswith("ita.")}
+        prefix = "" if whole else "ita."
+        part = self.net if whole else self.net.ita
+        weights = {k[len(prefix):]: v for k, v in data["model"].items() if k.startswith(prefix)}
         try:
-            self.net.ita.load_state_dict(ita)
+            part.load_state_dict(weights)
         except RuntimeError as exc:
-            raise CheckpointError(path, "its ITA does not fit the architecture: "
+            raise CheckpointError(path, "its networks do not fit the architecture: "
                                         f"{str(exc).splitlines()[0][:200]}") from None
 
     def load(self, path) -> None:
@@ -439,9 +451,11 @@ class ATAHRLTrainer:
         if steps == 0 or self.counters[phase] >= steps:
             return
         s = self.s
-        if self.counters[phase] == 0 and not self.run_folder.best_path.exists() \
-                and phase == "ita":
-            self._validate(phase, 0)          # the untrained policy: greedy's prior alone
+        for group in self.opt.param_groups:
+            group["lr"] = s.lr if phase == "ita" else s.ctr_lr
+        if self.counters[phase] == 0 and (phase == "ctr"
+                                          or not self.run_folder.best_path.exists()):
+            self._validate(phase, 0)          # the untrained part: greedy's prior alone
         while self.counters[phase] < steps:
             t0 = time.perf_counter()
             step = self.counters[phase]
@@ -450,6 +464,8 @@ class ATAHRLTrainer:
             ids = np.repeat(self._ids(phase, step), s.samples)
             record, rec = self.rollout(mission, ids, phase, train=True)
             R = hierarchical_rewards(record, expected=s.reward == "expected")
+            R.update({f"{k}_to_go": v for k, v in
+                      rewards_to_go(record, expected=s.reward == "expected").items()})
             loss = self.policy_loss(phase, rec, R)
             self.opt.zero_grad()
             loss.backward()
@@ -480,8 +496,9 @@ class ATAHRLTrainer:
         row = dict(row or {"phase": phase, "step": step, "wall_s": f"{self.wall:.1f}"})
         row["eval_score"] = f"{score:.2f}"
         row["eval_expected"] = f"{expected:.2f}"
-        # the ITA phase selects by the ITA alone; the first CTR validation starts afresh
-        if phase == "ctr" and self.counters["ctr"] <= self.s.eval_every:
+        # the ITA phase selects by the ITA alone; the CTR phase starts afresh from its untrained
+        # parts (the ITA's validation never reallocated)
+        if phase == "ctr" and step == 0:
             self.best_eval = -math.inf
         if expected > self.best_eval:
             self.best_eval = expected
@@ -498,32 +515,52 @@ class ATAHRLTrainer:
             logp, ent = D.trace_log_prob(self.net.ita, emb, rec.ita)
             n = max(rec.ita.n_steps, 1)
             return self._term(R["R_ITA"], logp, ent, n, K)
-        E = R["total"].size
         emb_i = self.net.tr.encoder(to_tensors(rec.inherent))
         if self.trains_cond and rec.cond_choice:
-            logp, ent = self._condition_log_prob(rec, emb_i)
-            loss = loss + self._term(R["R_C"], logp, ent, len(rec.cond_choice), K)
+            # pi_C decides at epochs 1 .. T-1: each decision against R_C from its epoch on
+            logp, ent = self._condition_log_prob(rec, emb_i)          # (E, T-1)
+            adv = per_epoch_advantage(R["R_C_to_go"][:, 1:], K)
+            loss = loss + self._weighted(adv, logp, ent, K, R["R_C_to_go"][:, 1:])
         if self.trains_tr and rec.tr:
-            logp = torch.zeros(E)
-            ent = torch.zeros(E)
-            n = 0
+            adv_all = per_epoch_advantage(R["R_TR_to_go"], K)
+            terms, ents, advs = [], [], []
             for item in rec.tr:
                 rows = torch.as_tensor(item["rows"])
                 emb = self.net.tr.embed({g: v[rows] for g, v in emb_i.items()},
                                         to_tensors(item["raw"]), to_tensors(item["seen"]))
                 lp, en = D.trace_log_prob(self.net.tr, emb, item["trace"])
-                logp = logp.index_add(0, rows, lp)
-                ent = ent.index_add(0, rows, en)
-                n += item["trace"].n_steps
-            loss = loss + self._term(R["R_TR"], logp, ent, max(n / max(len(rec.tr), 1), 1), K)
+                terms.append(lp)
+                ents.append(en)
+                advs.append(adv_all[item["rows"], item["epoch"]])
+            adv = np.concatenate(advs)
+            scale = adv.std() + 1e-6
+            logp = torch.cat(terms)
+            loss = loss - (torch.as_tensor(adv / scale, dtype=torch.float32) * logp).sum() \
+                / R["total"].size - self.s.entropy * torch.cat(ents).sum() / R["total"].size
         return loss
+
+    def _weighted(self, adv: np.ndarray, logp: torch.Tensor, ent: torch.Tensor, K: int,
+                  reward: np.ndarray) -> torch.Tensor:
+        """-(advantage * log-prob) summed over decisions, averaged over episodes, minus the
+        entropy bonus; plus the pull towards each scenario's best sample (by its reward from
+        the first decision on)."""
+        E = adv.shape[0]
+        scale = adv.std() + 1e-6
+        term = -(torch.as_tensor(adv / scale, dtype=torch.float32) * logp).sum() / E
+        term = term - self.s.entropy * ent.sum() / E
+        if self.s.self_imitation > 0:
+            first = reward[:, 0]
+            best = first.reshape(-1, K).argmax(1) + np.arange(E // K) * K
+            term = term - self.s.self_imitation * logp[torch.as_tensor(best)].sum(-1).mean() \
+                / logp.shape[1]
+        return term
 
     def _condition_log_prob(self, rec: Recorder, emb_i: dict[str, torch.Tensor]
                             ) -> tuple[torch.Tensor, torch.Tensor]:
+        """pi_C's log-probabilities and entropies of its decisions, (E, epochs decided)."""
         E = rec.cond_feats[0].shape[0]
         hidden = torch.zeros(E, self.cfg.d_model)
-        logp = torch.zeros(E)
-        ent = torch.zeros(E)
+        logps, ents = [], []
         for k, (raw, seen) in enumerate(rec.cond_state):
             emb = self.net.tr.embed(emb_i, to_tensors(raw), to_tensors(seen))
             pooled = torch.cat([emb[g] for g in ("humans", "robots", "tasks")], 1).mean(1)
@@ -531,9 +568,9 @@ class ATAHRLTrainer:
                                           torch.as_tensor(rec.cond_prior[k]), hidden)
             two = torch.log_softmax(torch.stack([torch.zeros_like(logit), logit], -1), -1)
             choice = torch.as_tensor(rec.cond_choice[k]).long()
-            logp = logp + two.gather(-1, choice[:, None])[:, 0]
-            ent = ent - (two.exp() * two).sum(-1)
-        return logp, ent
+            logps.append(two.gather(-1, choice[:, None])[:, 0])
+            ents.append(-(two.exp() * two).sum(-1))
+        return torch.stack(logps, 1), torch.stack(ents, 1)
 
     def _term(self, reward: np.ndarray, logp: torch.Tensor, ent: torch.Tensor, n: float,
               K: int) -> torch.Tensor:
@@ -547,6 +584,14 @@ class ATAHRLTrainer:
             best = reward.reshape(-1, K).argmax(1) + np.arange(reward.size // K) * K
             term = term - self.s.self_imitation * logp[torch.as_tensor(best)].mean() / n
         return term
+
+
+def per_epoch_advantage(reward: np.ndarray, samples: int) -> np.ndarray:
+    """(E, T) rewards from each epoch on, less the mean over the scenario's samples at that
+    epoch: the shared baseline, epoch by epoch (zero-sum per scenario and epoch)."""
+    E, T = reward.shape
+    r = reward.reshape(E // samples, samples, T)
+    return (r - r.mean(1, keepdims=True)).reshape(E, T)
 
 
 def shared_baseline_advantage(reward: np.ndarray, samples: int) -> np.ndarray:

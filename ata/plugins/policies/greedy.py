@@ -47,6 +47,8 @@ class GreedyPolicy:
         fatigue_floor: float = param(0.4, min=0.0, max=1.0, help="fatigue floor assumed")
         retask_cost: bool = param(True, help="weigh re-tasking costs when reallocating (keep, "
                                   "repair or re-plan); false: always re-plan in full")
+        replan_in_full: bool = param(True, help="with retask_cost: count the full re-plan "
+                                     "among the candidates (false: keep or repair only)")
 
     def __init__(self, settings: "GreedyPolicy.Settings", mission: object):
         self.s = settings
@@ -88,7 +90,7 @@ class GreedyPolicy:
             for field in ("robot", "navigator", "classifier"):
                 getattr(repair, field)[rows] = np.where(affected[rows], getattr(sub, field),
                                                         getattr(prev, field)[rows])
-        candidates = (prev, repair, full)
+        candidates = (prev, repair, full if self.s.replan_in_full else prev)
         worth = np.stack([self._worth(ctx, start, c, open_, cost) for c in candidates], axis=1)
         best = np.zeros(worth.shape[0], dtype=np.int64)
         for i in (1, 2):        # a change must gain more than it costs: keep wins ties
