@@ -123,10 +123,11 @@ def test_first_reallocation_step_follows_greedy_and_masks_down_robots():
     first = dec.keep_inputs(np.zeros((1, 2)), np.full((1, 2), np.inf), np.zeros((1, 2), bool),
                             greedy)
     assert dec.prev_valid.tolist() == [[True, False]]
-    # POI 0: keeping is greedy's choice (greedy's triple is the same: masked); POI 1: its
-    # robot is down, so no keeping; greedy's triple is the prior
+    # POI 0: greedy keeps it, so keeping is the prior (greedy's triple is the same: masked);
+    # POI 1: its robot is down, so no keeping; greedy changes it, so the prior decodes it again,
+    # greedy's triple the other choice
     assert first.mask[0].tolist() == [[True, True, False], [True, False, True]]
-    assert first.prior[0].tolist() == [[-1.0, 1.0, 1.0], [-1.0, -1.0, 1.0]]
+    assert first.prior[0].tolist() == [[-1.0, 1.0, 0.0], [1.0, -1.0, 0.0]]
     assert first.features[0, :, 0].tolist() == [1.0, 0.0]      # robot up
     assert first.features[0, :, 3].tolist() == [0.0, 1.0]      # classified by a human
     assert first.features[0, :, 12].tolist() == [1.0, 0.0]     # greedy keeps it
@@ -149,6 +150,25 @@ def components(s, net, learned=True, sample=False):
     ctr = CTRPolicy(CTRPolicy.Settings(learned=learned, sample=sample), s.mission, net=net)
     return {"initial": ita, "condition": ctr, "reallocation": ctr,
             "reconstructors": AuxReconstructor(None, s.mission, net=net)}
+
+
+def test_the_ctr_phase_starts_pi_tr_as_the_trained_ita(tmp_path):
+    trainer = train(session("ata_hrl.ctr_steps=0"), tmp_path)
+    trainer.tr_from_ita()
+    tr, ita = trainer.net.tr, trainer.net.ita
+    for name, value in ita.scorers.state_dict().items():
+        assert torch.equal(tr.scorers.state_dict()[name], value), name
+    assert all(not layer.weight.any() for layer in tr.state.values())
+    # so pi_TR's embeddings of any state are the ITA's of I
+    from ata.plugins.ata_hrl.features import to_tensors
+    feats = {g: torch.rand(2, n, d) for g, n, d in (("humans", 3, 5), ("robots", 4, 3),
+                                                     ("tasks", 12, 7))}
+    state = {g: torch.rand(2, n, d) for g, n, d in (("humans", 3, 4), ("robots", 4, 5),
+                                                     ("tasks", 12, 7))}
+    with torch.no_grad():
+        a = tr.embed(tr.encoder(feats), state, state)
+        b = ita.encoder(feats)
+    assert all(torch.allclose(a[g], b[g]) for g in a)
 
 
 def test_an_untrained_network_decides_as_its_prior_alone():

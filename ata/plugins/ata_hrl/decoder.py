@@ -233,10 +233,10 @@ class Decoder:
         the POI's expected outcome if kept (``expected`` points and ``finish`` time from the
         projection of the allocation in force), who holds it and how loaded they are, whether
         its robot is down or its kind or difficulty `changed` since it was planned, and whether
-        greedy changes it. The prior takes greedy's choice (-1, then +1 for greedy's outcome):
-        with its learned part off, pi_TR reallocates as greedy does. Keeping is masked where
-        the robot is down; greedy's triple where it keeps (it is the same as keeping) or names
-        a robot that is down."""
+        greedy changes it. The prior follows greedy's keep-or-repair reallocation: keep (+1)
+        where greedy keeps; where greedy changes the POI, decode it again (+1), with greedy's
+        triple as the other choice (0). Keeping is masked where the robot is down; greedy's
+        triple where it keeps (it is the same as keeping) or names a robot that is down."""
         E, P, H = self.E, self.P, self.H
         prev, hz = self.previous, self.horizon
         heuristic_keeps = (heuristic.stack() == prev.stack()).all(-1)
@@ -258,8 +258,8 @@ class Decoder:
         heuristic_ok = np.isfinite(np.take_along_axis(self.robot_free, heuristic.robot, axis=1))
         mask = np.stack([self.left, self.left & self.prev_valid,
                          self.left & ~heuristic_keeps & heuristic_ok], -1)
-        prior = np.stack([np.full((E, P), -1.0), np.where(heuristic_keeps, 1.0, -1.0),
-                          np.ones((E, P))], -1)
+        prior = np.stack([np.where(heuristic_keeps, -1.0, 1.0),
+                          np.where(heuristic_keeps, 1.0, -1.0), np.zeros((E, P))], -1)
         return StepInputs(feats.astype(np.float32), mask, prior, self.left.any(1))
 
     @_quiet

@@ -73,6 +73,10 @@ class ATAHRLTrainer:
         samples: int = param(8, min=2, max=256, help="samples of each scenario per step (the "
                              "shared baseline is their mean)")
         ita_steps: int = param(300, min=0, help="steps of the ITA phase")
+        ita_reallocates: bool = param(False, help="in the ITA phase, reallocate as the mission "
+                                      "does, with pi_C and pi_TR as they stand (their greedy "
+                                      "priors when untrained): R_ITA then counts what happens "
+                                      "after the reallocations (false: never reallocate)")
         ita_from: str = param("", help="take the ITA policy from this checkpoint (a path or "
                               "builtin:NAME) and skip the ITA phase: the full method and its "
                               "ablations can share one ITA, trained alone")
@@ -81,8 +85,11 @@ class ATAHRLTrainer:
                                "say)")
         ctr_steps: int = param(200, min=0, help="steps of the pi_C / pi_TR phase")
         lr: float = param(1e-3, min=0.0, max=1.0, help="Adam learning rate of the ITA phase")
-        ctr_lr: float = param(3e-3, min=0.0, max=1.0, help="Adam learning rate of the pi_C / "
+        ctr_lr: float = param(1e-3, min=0.0, max=1.0, help="Adam learning rate of the pi_C / "
                               "pi_TR phase")
+        tr_from_ita: bool = param(True, help="start pi_TR's encoder and scorers as copies of "
+                                  "the trained ITA's (its state embedding and keep step at "
+                                  "zero): it decodes as the ITA learned to, from the start")
         entropy: float = param(0.0, min=0.0, help="entropy bonus weight (per decision)")
         self_imitation: float = param(0.0, min=0.0, help="weight of the pull towards each "
                                       "scenario's best sample (per decision)")
@@ -209,6 +216,20 @@ class ATAHRLTrainer:
     def save(self, name: str = "checkpoint.pt") -> None:
         self.run_folder.save(self.checkpoint(), name)
 
+    def tr_from_ita(self) -> None:
+        """pi_TR's encoder and decoder scorers as the ITA's, its state embedding and keep step
+        at zero: at the start of the CTR phase pi_TR decodes exactly as the trained ITA (a pure
+        function of the ITA's weights, so a resumed run does the same)."""
+        tr, ita = self.net.tr, self.net.ita
+        with torch.no_grad():
+            tr.encoder.load_state_dict(ita.encoder.state_dict())
+            tr.scorers.load_state_dict(ita.scorers.state_dict())
+            tr.auto.copy_(ita.auto)
+            tr.onboard.copy_(ita.onboard)
+            for layer in [*tr.state.values(), tr.keep.out[-1], tr.keep.linear]:
+                torch.nn.init.zeros_(layer.weight)
+                torch.nn.init.zeros_(layer.bias)
+
     def take_ita(self, spec: str, whole: bool = False) -> None:
         """The ITA network of another ATA-HRL checkpoint (one that trained its ITA), or, with
         `whole`, every network of it."""
@@ -276,6 +297,7 @@ class ATAHRLTrainer:
         if phase == "ita":
             if recorder is not None:
                 initial.train_with(self.net, recorder, sampler)
+        if phase == "ita" and not self.s.ita_reallocates:
             out["condition"] = build_component(self.registry, mission, "condition", "never")
             out["reallocation"] = initial if isinstance(initial, AttentionITA) else \
                 self._component(mission, "policy", slots.reallocation)
@@ -284,13 +306,13 @@ class ATAHRLTrainer:
             if self.trains_cond or self.trains_tr:
                 ctr = self._component(mission, "policy", slots.reallocation
                                       if self.trains_tr else slots.condition)
-                if recorder is not None:
+                if recorder is not None and phase == "ctr":
                     ctr.train_with(self.net, recorder, sampler)
             out["condition"] = ctr if self.trains_cond else \
                 self._component(mission, "condition", slots.condition)
             out["reallocation"] = ctr if self.trains_tr else \
                 self._component(mission, "policy", slots.reallocation)
-        if phase == "ita":                 # the ITA reads I only: no reconstruction needed
+        if phase == "ita" and not self.s.ita_reallocates:   # the ITA reads I only
             out["reconstructors"] = build_component(self.registry, mission, "reconstructor",
                                                     "identity")
         elif self.trains_aux:
@@ -453,6 +475,9 @@ class ATAHRLTrainer:
         s = self.s
         for group in self.opt.param_groups:
             group["lr"] = s.lr if phase == "ita" else s.ctr_lr
+        if phase == "ctr" and self.counters["ctr"] == 0 and s.tr_from_ita \
+                and self.trains_ita:
+            self.tr_from_ita()
         if self.counters[phase] == 0 and (phase == "ctr"
                                           or not self.run_folder.best_path.exists()):
             self._validate(phase, 0)          # the untrained part: greedy's prior alone
