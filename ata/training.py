@@ -106,7 +106,9 @@ class TrainRun:
     """A training run folder.
 
     :param fields: the columns of log.csv.
-    :param resume: carry on in an existing folder (its log is kept).
+    :param resume: carry on in an existing folder. Its log is kept up to the rows written when
+        its checkpoint.pt was saved (each checkpoint records that count as ``log_rows``): the
+        rows of steps that the resumed run does again are not left twice in log.csv.
     :param on_row: told of every logged row (the progress bar).
     """
 
@@ -115,11 +117,29 @@ class TrainRun:
         self.dir = Path(run_dir)
         self.fields = list(fields)
         self.on_row = on_row
+        self.rows = 0
         self.dir.mkdir(parents=True, exist_ok=True)
         if not resume:
             (self.dir / "mission.resolved.toml").write_text(mission_toml, encoding="utf-8")
             with open(self.dir / "log.csv", "w", newline="") as f:
                 csv.DictWriter(f, fieldnames=self.fields).writeheader()
+        else:
+            self._rewind()
+
+    def _rewind(self) -> None:
+        """Cut log.csv back to the rows its last checkpoint had seen written."""
+        log = self.dir / "log.csv"
+        lines = log.read_text(encoding="utf-8").splitlines(keepends=True) if log.exists() else []
+        keep = len(lines) - 1
+        if self.checkpoint_path.exists():
+            kept = read_checkpoint(self.checkpoint_path).get("log_rows")
+            if isinstance(kept, int) and 0 <= kept < keep:
+                keep = kept
+        self.rows = max(keep, 0)
+        if lines:
+            tmp = log.with_name(log.name + ".tmp")
+            tmp.write_text("".join(lines[:1 + self.rows]), encoding="utf-8")
+            os.replace(tmp, log)
 
     @property
     def checkpoint_path(self) -> Path:
@@ -137,6 +157,7 @@ class TrainRun:
         row = {k: row.get(k, "") for k in self.fields}
         with open(self.dir / "log.csv", "a", newline="") as f:
             csv.DictWriter(f, fieldnames=self.fields).writerow(row)
+        self.rows += 1
         if self.on_row is not None:
             self.on_row(row)
 
@@ -145,6 +166,7 @@ class TrainRun:
         import torch
         path = self.dir / name
         tmp = path.with_name(path.name + ".tmp")
+        data["log_rows"] = self.rows
         torch.save(data, tmp)
         os.replace(tmp, path)
         return path

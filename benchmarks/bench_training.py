@@ -32,7 +32,6 @@ from rich.table import Table
 from ata.core.kernel import Simulation
 from ata.core.runner import BASELINE_MISSION, build_trainer, load_session, training_mission_for
 from ata.plugins.ata_hrl.components import AttentionITA
-from ata.plugins.ata_hrl.rewards import hierarchical_rewards
 from ata.training import TrainRun
 
 
@@ -84,8 +83,7 @@ def main() -> None:
             t0 = time.perf_counter()
             record, rec = trainer.rollout(mission, ids(i), phase, train=True)
             t1 = time.perf_counter()
-            R = hierarchical_rewards(record, expected=True)
-            loss = trainer.policy_loss(phase, rec, R)
+            _, loss = trainer.rewards_and_loss(phase, record, rec)
             trainer.opt.zero_grad()
             loss.backward()
             trainer.opt.step()

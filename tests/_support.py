@@ -87,6 +87,9 @@ def whole_and_killed(session, tmp_path, phase: str, step: str):
         train(session, tmp_path / "broken", on_row=kill)
     again = load_session(str(tmp_path / "broken" / "mission.resolved.toml"))
     resumed = train(again, tmp_path / "broken", resume=True)
+    logs = [(tmp_path / d / "log.csv").read_text().splitlines() for d in ("whole", "broken")]
+    steps = [[tuple(line.split(",")[:2]) for line in log] for log in logs]
+    assert steps[1] == steps[0]          # the steps done again are not logged twice
     return whole, resumed
 
 

@@ -143,6 +143,7 @@ class ATAHRLTrainer:
                                         lr=settings.aux_lr)
         self.gen = torch.Generator().manual_seed(settings.seed + 1)
         self.counters = {"aux": 0, "ita": 0, "ctr": 0, "episodes": 0}
+        self.validated_at_start: set[str] = set()   # phases whose step-0 validation is logged
         self.best_eval = -math.inf
         self.wall = 0.0
         self.run_folder: TrainRun | None = None
@@ -205,6 +206,7 @@ class ATAHRLTrainer:
                 "aux_optimizer": self.aux_opt.state_dict(),
                 "rng": {"torch": torch.get_rng_state(), "sampler": self.gen.get_state()},
                 "counters": dict(self.counters), "best_eval": float(self.best_eval),
+                "validated_at_start": sorted(self.validated_at_start),
                 "wall_s": float(self.wall), "mission": self.mission.to_toml(),
                 "trainer": self.name,
                 "scenario_ranges": [list(r) for r in self.scenario_ranges()],
@@ -259,6 +261,7 @@ class ATAHRLTrainer:
             torch.set_rng_state(data["rng"]["torch"])
             self.gen.set_state(data["rng"]["sampler"])
             self.counters.update({k: int(v) for k, v in data["counters"].items()})
+            self.validated_at_start = set(data.get("validated_at_start", []))
         except (KeyError, ValueError, RuntimeError, TypeError) as exc:
             raise CheckpointError(path, f"cannot resume from it ({exc})") from None
         self.best_eval = float(data.get("best_eval", -math.inf))
@@ -478,9 +481,10 @@ class ATAHRLTrainer:
         if phase == "ctr" and self.counters["ctr"] == 0 and s.tr_from_ita \
                 and self.trains_ita:
             self.tr_from_ita()
-        if self.counters[phase] == 0 and (phase == "ctr"
-                                          or not self.run_folder.best_path.exists()):
+        if self.counters[phase] == 0 and phase not in self.validated_at_start:
             self._validate(phase, 0)          # the untrained part: greedy's prior alone
+            self.validated_at_start.add(phase)
+            self.save()                       # a resumed run neither redoes nor loses its row
         while self.counters[phase] < steps:
             t0 = time.perf_counter()
             step = self.counters[phase]
@@ -488,10 +492,7 @@ class ATAHRLTrainer:
             mission = self._mission(setting, s.seed)
             ids = np.repeat(self._ids(phase, step), s.samples)
             record, rec = self.rollout(mission, ids, phase, train=True)
-            R = hierarchical_rewards(record, expected=s.reward == "expected")
-            R.update({f"{k}_to_go": v for k, v in
-                      rewards_to_go(record, expected=s.reward == "expected").items()})
-            loss = self.policy_loss(phase, rec, R)
+            R, loss = self.rewards_and_loss(phase, record, rec)
             self.opt.zero_grad()
             loss.backward()
             if s.grad_clip > 0:      # the policies' gradients only (not the reconstructors')
@@ -515,6 +516,14 @@ class ATAHRLTrainer:
             if self.counters[phase] % s.checkpoint_every == 0:
                 self.save()
         self.save()
+
+    def rewards_and_loss(self, phase: str, record, rec) -> tuple[dict, torch.Tensor]:
+        """The paper's rewards of a training rollout (with their per-epoch rewards-to-go) and
+        the policy loss of the phase."""
+        expected = self.s.reward == "expected"
+        R = hierarchical_rewards(record, expected=expected)
+        R.update({f"{k}_to_go": v for k, v in rewards_to_go(record, expected=expected).items()})
+        return R, self.policy_loss(phase, rec, R)
 
     def _validate(self, phase: str, step: int, row: dict | None = None) -> None:
         score, expected = self.evaluate(phase)
