@@ -199,6 +199,26 @@ def test_sampled_decisions_do_not_depend_on_the_batch():
     assert total_batch[2] == total_alone[0]
 
 
+def test_the_shipped_ita_is_trained_and_decides_otherwise_than_its_prior():
+    # ata/weights/ata_hrl_a.pt: the learned part of the ITA is not zero, and it changes the
+    # initial allocations of held-out scenarios (ids 2^40 on) against the prior alone
+    from ata.training import WEIGHTS
+    data = read_checkpoint(WEIGHTS / "ata_hrl_a.pt", "ata_hrl")
+    assert "ita" in data["trained"] and data["ita_from"]
+    learned_out = [v for k, v in data["model"].items()
+                   if k.startswith("ita.scorers.") and ".linear." in k]
+    assert learned_out and any(v.abs().sum() > 0 for v in learned_out)
+    mission = str(WEIGHTS.parents[1] / "examples" / "missions" / "ata_hrl_a.toml")
+    common = ["components.condition='never'"]
+    ids = np.arange(3) + 2 ** 40
+    runs = []
+    for flag in ("true", "false"):
+        s = load_session(mission, [*common, f"attention.learned={flag}"])
+        runs.append(Simulation(s.mission, s.registry, ids).run())
+    assert all(np.isfinite(r.total).all() for r in runs)
+    assert not np.array_equal(runs[0].allocations, runs[1].allocations)
+
+
 # --- the trainer as a component ----------------------------------------------------------------------
 
 def test_the_trainer_trains_what_the_slots_hold():
