@@ -219,6 +219,20 @@ def test_the_shipped_ita_is_trained_and_decides_otherwise_than_its_prior():
     assert not np.array_equal(runs[0].allocations, runs[1].allocations)
 
 
+@pytest.mark.slow
+def test_shipped_ata_hrl_beats_greedy_on_held_out_scenarios_of_a_at_medium():
+    # the suite's (a) medium cell (docs/RESULTS.md: +16.6 [+5.4, +27.8]): paired, 500 scenarios
+    from ata.core.runner import run_mission
+    from ata.training import WEIGHTS
+    common = ["mission.scenarios=500", "mission.first_scenario=1099511627776",
+              "mission.seed=0", "mission.setting='a'", "mission.uncertainty='medium'"]
+    mission = str(WEIGHTS.parents[1] / "examples" / "missions" / "ata_hrl_a.toml")
+    learned = run_mission(load_session(mission, common))
+    greedy = run_mission(load_session(str(BASELINE_MISSION), common))
+    diff = learned.total - greedy.total
+    assert diff.mean() - 1.96 * diff.std(ddof=1) / np.sqrt(diff.size) > 0
+
+
 # --- the trainer as a component ----------------------------------------------------------------------
 
 def test_the_trainer_trains_what_the_slots_hold():
