@@ -15,6 +15,7 @@ import pytest
 from _support import flat, tiny_data
 from ata.core import evaluate as ev
 from ata.core import report as rep
+from ata.core.cache import cache_dir, run_cache
 from ata.core.errors import MissionError
 from ata.core.executors import ProcessExecutor, SerialExecutor
 from ata import hookimpl
@@ -286,8 +287,8 @@ def test_milp_cache_equals_fresh_solve(tmp_path, monkeypatch):
     data = [tiny_data(s, P=5) for s in range(4)]
     policy = M.MilpPolicy(settings, None)
     fresh = policy.solve_all(data)                       # no cache set: solved
-    assert M.cache_dir() is None
-    with M.solution_cache(tmp_path) as root:
+    assert cache_dir() is None
+    with run_cache(tmp_path) as root:
         first = policy.solve_all(data)                   # solved and stored
         assert len(list((root / "milp").rglob("*.json"))) == 4
 
@@ -296,7 +297,7 @@ def test_milp_cache_equals_fresh_solve(tmp_path, monkeypatch):
 
         monkeypatch.setattr(M, "solve_scenario", no_solving)
         cached = policy.solve_all(data)                  # read back, nothing solved
-    assert M.cache_dir() is None
+    assert cache_dir() is None
     for f, a, c in zip(fresh, first, cached):
         assert same_solution(f, a) and same_solution(f, c)
     # the key: the scenario's data and the settings that shape the solution

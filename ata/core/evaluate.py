@@ -33,6 +33,7 @@ import tomli_w
 
 from ata import __version__
 from ata.core import mission as mission_mod
+from ata.core.cache import run_cache
 from ata.core.errors import MissionError
 from ata.core.executors import Executor
 from ata.core.kernel import Simulation
@@ -403,13 +404,11 @@ def _torch_one_thread() -> Iterator[None]:
 def run_unit(unit: Unit) -> dict[str, Any]:
     """Run one unit in a fresh plugin manager (as a worker process must); the result carries
     the unit's wall time."""
-    from ata.plugins.policies import milp
-
     t0 = time.perf_counter()
     mission = _one_worker(unit.mission) if unit.parallel else unit.mission
     pm = get_plugin_manager(optional=mission.settings.plugins)
     registry = collect_components(pm)
-    with _torch_one_thread(), milp.solution_cache(unit.cache):
+    with _torch_one_thread(), run_cache(unit.cache):
         out = run_batch(mission, registry, unit.ids)
     out["wall_s"] = time.perf_counter() - t0
     return out

@@ -13,7 +13,6 @@ navigates no faster and images no better than the robot alone).
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import hashlib
 import json
@@ -23,13 +22,13 @@ import warnings
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator
 
 import numpy as np
 from scipy import sparse
 from scipy.optimize import LinearConstraint, milp
 
 from ata import hookimpl
+from ata.core.cache import cache_dir
 from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext, SimState
 from ata.plugins import tables
@@ -295,31 +294,14 @@ def _solve_chunk(args: tuple) -> list[Solution]:
 # -- the solution cache ----------------------------------------------------------------------
 # A scenario's MILP depends on its ScenarioData (I, the working hours at t = 0, the horizon and
 # the uncertainty level) and the [milp] settings alone, so its solution can be kept on disk and
-# reused by the next evaluation. Off unless a cache folder is set (`ata eval` sets one).
+# reused by the next evaluation: under milp/ in the run's cache folder (`ata.core.cache`), when
+# one is set (`ata eval` sets one).
 
-_CACHE_DIR: Path | None = None
 CACHE_FORMAT = 1
 """Bumped when the cached record changes shape."""
 _NOT_IN_KEY = ("workers", "chunk_size")
 """[milp] settings that do not change a scenario's solution."""
 _code_hash: str | None = None
-
-
-def cache_dir() -> Path | None:
-    """The folder solutions are cached in, or None when caching is off."""
-    return _CACHE_DIR
-
-
-@contextlib.contextmanager
-def solution_cache(path: str | Path | None) -> Iterator[Path | None]:
-    """Cache MILP solutions under `path`/milp/ inside the block (None: no cache)."""
-    global _CACHE_DIR
-    previous = _CACHE_DIR
-    _CACHE_DIR = Path(path).expanduser() if path is not None else None
-    try:
-        yield _CACHE_DIR
-    finally:
-        _CACHE_DIR = previous
 
 
 def _code_version() -> str:
