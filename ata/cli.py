@@ -148,7 +148,7 @@ def render_summary(session, result) -> None:
 @app.command()
 @user_errors
 def train(mission: Optional[str] = typer.Argument(
-              None, help="Training mission (TOML) naming a trainer in [components]. Default: "
+              None, help="Training mission (TOML) naming a trainer in \\[components]. Default: "
                          "the built-in training mission of the --plugins given."),
           set_: Optional[List[str]] = SetOption,
           plugins: Optional[str] = typer.Option(
@@ -174,8 +174,9 @@ def train(mission: Optional[str] = typer.Argument(
         session = runner.load_session(str(source))
         run_dir = resume
     else:
-        names = _split(plugins) if plugins is not None else ["ctr", "aux"]
-        source = mission or str(runner.training_mission_for(names))
+        names = _split(plugins) if plugins is not None else None
+        source = mission or str(runner.training_mission_for(names or ["ctr", "aux"]))
+        # a mission file brings its own plugins; --plugins, when given, adds to them
         session = runner.load_session(source, list(set_ or []), names if mission else None)
         stamp = runner.default_out_dir(session.mission)
         run_dir = out or stamp.with_name("train-" + stamp.name)

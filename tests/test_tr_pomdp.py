@@ -193,6 +193,13 @@ def test_cli_train_trp_and_bad_checkpoint(cli, tmp_path):
               *[x for kv in TINY for x in ("--set", kv)])
     assert res.exit_code == 0, res.output
     assert (out / "best.pt").exists() and "dqn" in (out / "log.csv").read_text()
+    # a mission file given without --plugins trains with the plugins it names, no others
+    mission_file = training_mission_for(["trp"])
+    res = cli("train", str(mission_file), "--out", tmp_path / "file", "--quiet",
+              *[x for kv in TINY for x in ("--set", kv)])
+    assert res.exit_code == 0, res.output
+    resolved = tomllib.loads((tmp_path / "file" / "mission.resolved.toml").read_text())
+    assert resolved["mission"]["plugins"] == ["trp"]
     res = cli("train", "--plugins", "trp,ctr")
     assert res.exit_code == 2 and "no built-in training mission" in res.output
     # a file that is no checkpoint, and an ATA-HRL checkpoint, are refused with clear messages
