@@ -34,12 +34,16 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ata.core.errors import MissionError
+from ata.core.evaluate import EVAL_FIRST_SCENARIO
 
-TRAINING_ID_LIMIT = 2 ** 40
+TRAINING_ID_LIMIT = EVAL_FIRST_SCENARIO
 """Training scenario ids lie below this; evaluation ids start there."""
+VALIDATION_SEED_OFFSET = 1_000_003
+"""A trainer's held-out validation scenarios have root seed ``seed + VALIDATION_SEED_OFFSET``
+(the built-in trainers' convention; they list that range in ``scenario_ranges``)."""
 WEIGHTS = Path(__file__).resolve().parent / "weights"
 """Where ``builtin:NAME`` checkpoints live (shipped with the package)."""
-_CACHE: dict[tuple[str, str], Any] = {}
+_CACHE: dict[tuple, Any] = {}
 
 
 class CheckpointError(MissionError):
@@ -77,9 +81,14 @@ def read_checkpoint(path: str | Path, kind: str | None = None) -> dict[str, Any]
                                  f"{first})") from None
     if not isinstance(data, dict) or "kind" not in data:
         raise CheckpointError(p, "is not an ata checkpoint (it names no method)")
+    return _of_kind(data, p, kind)
+
+
+def _of_kind(data: dict[str, Any], path: Path, kind: str | None) -> dict[str, Any]:
     if kind is not None and data.get("kind") != kind:
-        raise CheckpointError(p, f"is a checkpoint of {data.get('kind')!r}, not of {kind!r}: "
-                                 f"name a checkpoint that `ata train` wrote for {kind}")
+        raise CheckpointError(path, f"is a checkpoint of {data.get('kind')!r}, not of "
+                                    f"{kind!r}: name a checkpoint that `ata train` wrote for "
+                                    f"{kind}")
     return data
 
 
@@ -97,9 +106,14 @@ def load_cached(spec: str, build: Callable[[dict[str, Any], Path], Any], kind: s
 
 def trained_on(spec: str, kind: str) -> list[tuple[int, int, int]]:
     """The (root seed, first id, end id) ranges a checkpoint's training drew scenarios from,
-    as its trainer recorded them."""
-    data = read_checkpoint(resolve(spec), kind)
-    return [tuple(int(x) for x in r) for r in data.get("scenario_ranges", [])]
+    as its trainer recorded them (read once per process for each version of the file)."""
+    path = resolve(spec)
+    stat = path.stat() if path.is_file() else None
+    key = ("ranges", kind, str(path.resolve()), stat and (stat.st_mtime_ns, stat.st_size))
+    if stat is None or key not in _CACHE:
+        data = read_checkpoint(path, kind)
+        _CACHE[key] = [tuple(int(x) for x in r) for r in data.get("scenario_ranges", [])]
+    return list(_CACHE[key])
 
 
 class TrainRun:
@@ -118,6 +132,7 @@ class TrainRun:
         self.fields = list(fields)
         self.on_row = on_row
         self.rows = 0
+        self._resumed: dict[str, Any] | None = None     # checkpoint.pt, read once on resume
         self.dir.mkdir(parents=True, exist_ok=True)
         if not resume:
             (self.dir / "mission.resolved.toml").write_text(mission_toml, encoding="utf-8")
@@ -132,7 +147,8 @@ class TrainRun:
         lines = log.read_text(encoding="utf-8").splitlines(keepends=True) if log.exists() else []
         keep = len(lines) - 1
         if self.checkpoint_path.exists():
-            kept = read_checkpoint(self.checkpoint_path).get("log_rows")
+            self._resumed = read_checkpoint(self.checkpoint_path)
+            kept = self._resumed.get("log_rows")
             if isinstance(kept, int) and 0 <= kept < keep:
                 keep = kept
         self.rows = max(keep, 0)
@@ -148,6 +164,14 @@ class TrainRun:
     @property
     def best_path(self) -> Path:
         return self.dir / "best.pt"
+
+    def resume_checkpoint(self, kind: str) -> dict[str, Any]:
+        """checkpoint.pt of the run being resumed (read once, when the run folder opened), as
+        ``read_checkpoint(self.checkpoint_path, kind)`` gives it."""
+        data, self._resumed = self._resumed, None
+        if data is None:
+            return read_checkpoint(self.checkpoint_path, kind)
+        return _of_kind(data, self.checkpoint_path, kind)
 
     def log(self, row: dict[str, Any]) -> None:
         """Append one row to log.csv (unknown keys are an error: they would be lost)."""
@@ -171,7 +195,3 @@ class TrainRun:
         os.replace(tmp, path)
         return path
 
-
-def ranges_overlap(a: tuple[int, int, int], b: tuple[int, int, int]) -> bool:
-    """Whether two (root seed, first id, end id) ranges share a scenario."""
-    return a[0] == b[0] and a[1] < b[2] and b[1] < a[2]

@@ -29,10 +29,9 @@ import torch
 from rich.console import Console
 from rich.table import Table
 
-from ata.core.kernel import Simulation
+from ata.core.kernel import Simulation, build_component
 from ata.core.runner import BASELINE_MISSION, build_trainer, load_session, training_mission_for
 from ata.plugins.ata_hrl.components import AttentionITA
-from ata.training import TrainRun
 
 
 def timed(fn, repeats: int) -> tuple[float, dict]:
@@ -58,8 +57,6 @@ def main() -> None:
               f"ata_hrl.samples={K}"]
     session = load_session(str(training_mission_for(["ctr", "aux"])), common)
     trainer = build_trainer(session)
-    trainer.run_folder = TrainRun("runs/bench_training", session.mission.to_toml(),
-                                  trainer.log_fields)
     mission = trainer._mission(args.setting, 777)
     ids = lambda i: np.repeat(np.arange(B) + 1000 * i, K)  # noqa: E731
     greedy = load_session(str(BASELINE_MISSION), [f"mission.setting='{args.setting}'"])
@@ -71,11 +68,12 @@ def main() -> None:
         def run(i):
             settings = AttentionITA.Settings(learned=learned)
             pol = AttentionITA(settings, mission, net=trainer.net)
-            never = trainer._component(mission, "condition", "never")
-            Simulation(mission, trainer.registry, ids(i),
+            reg = trainer.registry
+            never = build_component(reg, mission, "condition", "never")
+            identity = build_component(reg, mission, "reconstructor", "identity")
+            Simulation(mission, reg, ids(i),
                        overrides={"initial": pol, "condition": never, "reallocation": pol,
-                                  "reconstructors": trainer._component(
-                                      mission, "reconstructor", "identity")}).run()
+                                  "reconstructors": identity}).run()
         return run
 
     def step(phase: str):
@@ -84,9 +82,7 @@ def main() -> None:
             record, rec = trainer.rollout(mission, ids(i), phase, train=True)
             t1 = time.perf_counter()
             _, loss = trainer.rewards_and_loss(phase, record, rec)
-            trainer.opt.zero_grad()
-            loss.backward()
-            trainer.opt.step()
+            trainer.update(loss)
             return {"rollout": t1 - t0, "update": time.perf_counter() - t1}
         return run
 

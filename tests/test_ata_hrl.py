@@ -153,14 +153,13 @@ def components(s, net, learned=True, sample=False):
 
 
 def test_the_ctr_phase_starts_pi_tr_as_the_trained_ita(tmp_path):
-    trainer = train(session("ata_hrl.ctr_steps=0"), tmp_path)
-    trainer.tr_from_ita()
+    # one CTR step at learning rate 0: what the phase started from, unchanged by the step
+    trainer = train(session("ata_hrl.ctr_steps=1", "ata_hrl.ctr_lr=0"), tmp_path)
     tr, ita = trainer.net.tr, trainer.net.ita
     for name, value in ita.scorers.state_dict().items():
         assert torch.equal(tr.scorers.state_dict()[name], value), name
     assert all(not layer.weight.any() for layer in tr.state.values())
     # so pi_TR's embeddings of any state are the ITA's of I
-    from ata.plugins.ata_hrl.features import to_tensors
     feats = {g: torch.rand(2, n, d) for g, n, d in (("humans", 3, 5), ("robots", 4, 3),
                                                      ("tasks", 12, 7))}
     state = {g: torch.rand(2, n, d) for g, n, d in (("humans", 3, 4), ("robots", 4, 5),
@@ -280,7 +279,7 @@ def test_training_run_of_wo_c_writes_checkpoints_that_run_as_components(tmp_path
 
 
 def test_ita_from_shares_an_ita_and_init_from_trains_on(tmp_path):
-    first = train(session(plugins=("ita",)), tmp_path / "ita")
+    first = train(session("ata_hrl.seed=7", plugins=("ita",)), tmp_path / "ita")
     src = tmp_path / "ita" / "best.pt"
     # ita_from: the same ITA weights, no ITA phase, and the source's scenarios reported
     shared = train(session("components.condition='always'", f"ata_hrl.ita_from='{src}'",
@@ -293,8 +292,6 @@ def test_ita_from_shares_an_ita_and_init_from_trains_on(tmp_path):
     # init_from: every network as the source's, then the ITA phase goes on from there
     more = build_trainer(session(f"ata_hrl.init_from='{src}'", "ata_hrl.ita_steps=1",
                                  plugins=("ita",)))
-    from ata.training import TrainRun
-    more.run_folder = TrainRun(tmp_path / "more", more.mission.to_toml(), more.log_fields)
     more.take_ita(str(src), whole=True)
     assert all(torch.equal(v, best_ita[k]) for k, v in more.net.state_dict().items())
     # a checkpoint that trained no ITA cannot lend one

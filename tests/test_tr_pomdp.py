@@ -227,7 +227,6 @@ def test_example_missions_run_the_shipped_agents(name):
     assert tomllib.loads(path.read_text())["tr_pomdp"]["checkpoint"] == f"builtin:{name[:-1]}a"
     result = run_mission(load_session(str(path), ["mission.scenarios=2"]))
     assert result.reallocations.tolist() == [29, 29]      # condition "always": every epoch
-    assert np.isfinite(result.total).all()
 
 
 @pytest.mark.slow

@@ -12,9 +12,7 @@ from __future__ import annotations
 
 import sys
 
-import numpy as np
-
-from ata.core.report import _paired, bootstrap_ci, read_results
+from ata.core.report import read_results, summarize
 
 PAIRS = [("ATA-HRL", "greedy"), ("ATA-HRL", "ATA-HRL (learned off)"), ("ATA-HRL", "w/o.AUX"),
          ("ATA-HRL", "w/o.C"), ("AtRL-TR", "TR-POMDP"), ("ATA-HRL", "ITA-MILP"),
@@ -24,37 +22,37 @@ PAIRS = [("ATA-HRL", "greedy"), ("ATA-HRL", "ATA-HRL (learned off)"), ("ATA-HRL"
 def main(dirs: list[str]) -> None:
     res = read_results(dirs if len(dirs) > 1 else dirs[0])
     groups = [(s, lv) for s in res.settings for lv in res.levels]
-    score = res.columns["score"]
-    head = "| method | " + " | ".join(f"({s}) {lv}" for s, lv in groups) + " |"
-    print(head)
+    # one report per reference: its cells hold every method's mean and CI, and the paired
+    # difference reference - method
+    refs = {a for a, _ in PAIRS if a in res.methods} | {res.methods[0]}
+    cells = {ref: {(c.method, c.setting, c.level): c for c in summarize(res, ref).cells}
+             for ref in refs}
+    first = cells[res.methods[0]]
+    print("| method | " + " | ".join(f"({s}) {lv}" for s, lv in groups) + " |")
     print("|---|" + "---:|" * len(groups))
     for m in res.methods:
-        cells = []
+        row = []
         for s, lv in groups:
-            sel = res.select(m, s, lv)
-            if not sel.any():
-                cells.append("-")
-                continue
-            mean, low, high = bootstrap_ci(score[sel])
-            frac = float(np.nanmean(res.columns["fraction_of_u"][sel]))
-            cells.append(f"{mean:.1f} [{low:.0f}, {high:.0f}] ({frac:.2f} U)")
-        print(f"| {m} | " + " | ".join(cells) + " |")
+            c = first.get((m, s, lv))
+            row.append("-" if c is None else
+                       f"{c.mean:.1f} [{c.low:.0f}, {c.high:.0f}] ({c.fraction_of_u:.2f} U)")
+        print(f"| {m} | " + " | ".join(row) + " |")
     print()
     print("| paired difference | " + " | ".join(f"({s}) {lv}" for s, lv in groups) + " |")
     print("|---|" + "---:|" * len(groups))
     for a, b in PAIRS:
         if a not in res.methods or b not in res.methods:
             continue
-        cells = []
+        row = []
         for s, lv in groups:
-            x, y = _paired(res, res.select(a, s, lv), res.select(b, s, lv))
-            if x.size == 0:
-                cells.append("-")
+            c = cells[a].get((b, s, lv))
+            if c is None or c.diff[0] != c.diff[0]:      # not run, or no paired scenarios
+                row.append("-")
                 continue
-            mean, low, high = bootstrap_ci(x - y)
+            mean, low, high = c.diff
             mark = "**" if low > 0 else ""
-            cells.append(f"{mark}{mean:+.1f} [{low:+.1f}, {high:+.1f}]{mark}")
-        print(f"| {a} - {b} | " + " | ".join(cells) + " |")
+            row.append(f"{mark}{mean:+.1f} [{low:+.1f}, {high:+.1f}]{mark}")
+        print(f"| {a} - {b} | " + " | ".join(row) + " |")
 
 
 if __name__ == "__main__":

@@ -169,7 +169,7 @@ class HumanModel:
                                         tables.F_D[q, d])
             points = tables.POINTS[d]
             t.gain[cb, cp] = np.where(t.outcome_u[cb, cp] < p_ok, points, -points)
-            t.p_success[cb, cp] = p_ok
+            t.expected_gain[cb, cp] = tables.expected_points(points, p_ok)
             t.classified_at[cb, cp] = begin[cls] + duration[cls]
             t.cls_ready[cb, cp] = np.inf
             h.cls_count[cb, ch] += 1

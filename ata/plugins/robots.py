@@ -227,11 +227,12 @@ class RobotModel:
         onboard = sim.allocation.classifier[b, p] < 0
         d = t.true_diff[b, p]
         points = tables.POINTS[d]
-        win = t.outcome_u[b, p] < tables.P_RC[q, d]
+        p_ok = tables.P_RC[q, d]
+        win = t.outcome_u[b, p] < p_ok
         ob, op = b[onboard], p[onboard]
         t.classified_at[ob, op] = te[onboard]
         t.gain[ob, op] = np.where(win, points, -points)[onboard]
-        t.p_success[ob, op] = tables.P_RC[q, d][onboard]
+        t.expected_gain[ob, op] = tables.expected_points(points, p_ok)[onboard]
         t.cls_ready[b[~onboard], p[~onboard]] = te[~onboard]
         r.target[b, rr] = -1
         r.leg_start[b, rr] = np.inf

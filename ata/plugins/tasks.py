@@ -3,8 +3,8 @@
 Group ``tasks`` holds, per scenario and POI: ``pos`` (m), ``est_kind``/``est_diff`` (the
 satellite estimate), ``true_kind``/``true_diff``, ``reveal_time`` (when a changed attribute
 shows), ``capture_time``, ``quality`` (of the captured image), ``cls_ready`` (when it waits for a
-human classifier), ``classified_at`` and ``gain`` (points won or lost), ``p_success`` (the
-success probability the classification had), and ``outcome_u`` (the pre-drawn uniform that
+human classifier), ``classified_at`` and ``gain`` (points won or lost), ``expected_gain`` (the
+points it expected, given its success probability), and ``outcome_u`` (the pre-drawn uniform that
 decides the classification's success).
 """
 
@@ -52,7 +52,7 @@ class PoiTaskModel:
         t.cls_ready = np.full((B, P), np.inf)
         t.classified_at = np.full((B, P), np.inf)
         t.gain = np.zeros((B, P))
-        t.p_success = np.full((B, P), 0.5)
+        t.expected_gain = np.zeros((B, P))
         t.outcome_u = rng.uniform("tasks.outcome", 0, (P,))
 
     @hookimpl
@@ -82,8 +82,7 @@ class PoiTaskModel:
         start, end = epoch * clock.epoch_s, (epoch + 1) * clock.epoch_s
         done = (t.classified_at >= start) & (t.classified_at < end)
         sim.record.r_perf[:, epoch] = np.where(done, t.gain, 0.0).sum(axis=1)
-        sim.record.r_expected[:, epoch] = np.where(
-            done, tables.expected_points(tables.POINTS[t.true_diff], t.p_success), 0.0).sum(1)
+        sim.record.r_expected[:, epoch] = np.where(done, t.expected_gain, 0.0).sum(axis=1)
 
     @hookimpl
     def ata_episode_end(self, sim: SimState) -> None:

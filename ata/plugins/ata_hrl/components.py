@@ -24,7 +24,7 @@ from ata.core.state import Allocation, DecisionContext, Observation, SimState
 from ata.plugins.ata_hrl import decode as D
 from ata.plugins.ata_hrl.checkpoint import load_net, trained_ranges
 from ata.plugins.ata_hrl.decoder import DecodeSettings, Decoder
-from ata.plugins.ata_hrl.features import (inherent_features, seen_state, state_features,
+from ata.plugins.ata_hrl.features import (GROUPS, inherent_features, seen_state, state_features,
                                           to_tensors)
 from ata.plugins.ata_hrl.network import ATAHRLNet, COND_FEATURES
 from ata.plugins import tables
@@ -52,12 +52,11 @@ def decode_settings(ctx: DecisionContext) -> DecodeSettings:
     the mission's re-tasking cost."""
     cost = RetaskCost.of(ctx)
     mission = ctx.params.get("mission")
-    greedy = mission.component_settings.get("greedy") if mission is not None else None
-    keys = {}
-    if greedy is not None:
-        keys = {k: getattr(greedy, k) for k in ("capture_s", "fatigue_floor", "human_time_cost",
-                                                "rate_offset_s")}
-    return DecodeSettings(rebrief_s=cost.rebrief_s, replan_s=cost.replan_s, **keys)
+    greedy = (mission.component_settings.get("greedy") if mission is not None else None) \
+        or GreedyPolicy.Settings()
+    return DecodeSettings(capture_s=greedy.capture_s, fatigue_floor=greedy.fatigue_floor,
+                          human_time_cost=greedy.human_time_cost,
+                          rate_offset_s=greedy.rate_offset_s, rebrief_s=cost.rebrief_s)
 
 
 def decoder_start(ctx: DecisionContext, seen: dict[str, np.ndarray] | None
@@ -206,7 +205,7 @@ class CTRPolicy(LearnedComponent):
         B = ctx.reallocatable.shape[0]
         if self.hidden is None:
             self.hidden = torch.zeros(B, self.net.cfg.d_model)
-        pooled = torch.cat([self.emb[g] for g in ("humans", "robots", "tasks")], 1).mean(1)
+        pooled = torch.cat([self.emb[g] for g in GROUPS], 1).mean(1)
         with torch.no_grad():
             logit, self.hidden = self.net.cond(pooled, torch.as_tensor(self.cond_feats),
                                                torch.as_tensor(self.cond_prior), self.hidden,
@@ -323,12 +322,13 @@ class AuxReconstructor:
     def __init__(self, settings: "AuxReconstructor.Settings", mission: Any,
                  net: ATAHRLNet | None = None):
         self.settings = settings
+        self.from_checkpoint = net is None       # a trainer's live network reports nothing
         self.net = net if net is not None else load_net(settings.checkpoint)
         self.hidden: dict[str, torch.Tensor | None] = {"robots": None, "tasks": None}
 
     @hookimpl
     def ata_trained_on(self) -> list[tuple[int, int, int]]:
-        return trained_ranges(self.settings.checkpoint) if self.settings is not None else []
+        return trained_ranges(self.settings.checkpoint) if self.from_checkpoint else []
 
     @hookimpl
     def ata_reconstruct(self, sim: SimState, obs: Observation, inherent: Observation,

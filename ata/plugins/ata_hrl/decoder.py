@@ -59,7 +59,6 @@ class DecodeSettings:
     human_time_cost: float = 0.04
     rate_offset_s: float = 300.0
     rebrief_s: float = 0.0
-    replan_s: float = 0.0
 
 
 @dataclass
@@ -120,7 +119,6 @@ class Decoder:
         self.cum = self.util_now[..., None] * ramp
         self._cache: tuple | None = None
         self.touched = np.zeros((E, H), bool)
-        self.retask_robot = np.zeros((E, R), bool)
         # static per decode
         self.high = start.skill == 2
         self.points = start.points
@@ -129,7 +127,6 @@ class Decoder:
         if previous is not None:
             alive = np.isfinite(np.take_along_axis(start.robot_free, previous.robot, axis=1))
             self.prev_valid = alive
-        self.steps = 0
 
     def replay(self, kept: np.ndarray, alloc: Allocation | None = None) -> None:
         """Book the POIs in `kept` (E, P) with their triples in `alloc` (default: the previous
@@ -225,6 +222,24 @@ class Decoder:
             p = 0.5 + (self.start.eta * self.start.lam)[:, None, :] * f_f * f_w * f_d
         return p, finish, begin, u, f_w, f_f
 
+    def _greedy_net(self, q: np.ndarray, d: np.ndarray, pts: np.ndarray, arrive: np.ndarray,
+                    t_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Greedy's net value of each human classifying an image of quality q and difficulty d
+        captured at `arrive` (each (E, N)), worth `pts`: its expected points less the price of
+        the human's time (the item, and its wait from `t_ref` (E,)); with the finish times.
+        Both (E, N, H)."""
+        p_g, fin_g, _, _, _, _ = self._human_value(q, d, arrive, greedy=True)
+        delay = np.maximum(self.human_free[:, None, :] - t_ref[:, None, None], 0.0)
+        net = (tables.expected_points(pts[..., None], p_g)
+               - self.s.human_time_cost * (tables.T_BAR[q, d][..., None] + delay))
+        return net, fin_g
+
+    def _best_net(self, net: np.ndarray, fin: np.ndarray) -> np.ndarray:
+        """The best human's net value (E, N), 0 where that human would finish too late."""
+        best = net.argmax(-1)[..., None]
+        return np.where(np.take_along_axis(fin, best, -1)[..., 0] <= self.horizon,
+                        np.take_along_axis(net, best, -1)[..., 0], 0.0)
+
     # -- sub-decisions ---------------------------------------------------------------------------
     def keep_inputs(self, expected: np.ndarray, finish: np.ndarray, changed: np.ndarray,
                     heuristic: Allocation) -> StepInputs:
@@ -237,7 +252,7 @@ class Decoder:
         where greedy keeps; where greedy changes the POI, decode it again (+1), with greedy's
         triple as the other choice (0). Keeping is masked where the robot is down; greedy's
         triple where it keeps (it is the same as keeping) or names a robot that is down."""
-        E, P, H = self.E, self.P, self.H
+        E, P = self.E, self.P
         prev, hz = self.previous, self.horizon
         heuristic_keeps = (heuristic.stack() == prev.stack()).all(-1)
         cls_h = np.maximum(prev.classifier, 0)
@@ -292,15 +307,8 @@ class Decoder:
         rates, hum_best = [], []
         for arr_o, q_o, cost in ((arr_ff, q_auto, 0.0), (arr_nav, q_nav, s.human_time_cost
                                                            * leg_nav)):
-            p_g, fin_g, _, _, _, _ = self._human_value(q_o, d, np.minimum(arr_o, 1e12),
-                                                        greedy=True)
-            delay = np.maximum(self.human_free[e][:, None, :] - t_ff[:, None, None], 0.0)
-            net = (tables.expected_points(self.points[..., None], p_g)
-                   - s.human_time_cost * (tables.T_BAR[q_o, d][..., None] + delay))
-            best = net.argmax(-1)
-            fin_best = np.take_along_axis(fin_g, best[..., None], -1)[..., 0]
-            hum_net = np.where(fin_best <= self.horizon,
-                               np.take_along_axis(net, best[..., None], -1)[..., 0], 0.0)
+            hum_net = self._best_net(*self._greedy_net(q_o, d, self.points,
+                                                       np.minimum(arr_o, 1e12), t_ff))
             ev_on = tables.expected_points(self.points, tables.P_RC[q_o, d])
             value = np.maximum(hum_net, ev_on) - cost
             with np.errstate(invalid="ignore"):
@@ -347,7 +355,7 @@ class Decoder:
     @_quiet
     def robot_inputs(self, p: np.ndarray) -> StepInputs:
         """Which robot for POI p."""
-        E, R, s, e = self.E, self.R, self.s, self.e
+        E, R, e = self.E, self.R, self.e
         travel, arr = self._legs(e)
         arr_p = arr[e, :, p]                                                # (E, R)
         mask = ~self.robot_done & (arr_p <= self.horizon)
@@ -388,23 +396,16 @@ class Decoder:
         q = tables.QUALITY[rtype[:, None], kind[:, None], skill]
         ev_on = tables.expected_points(pts[:, None], tables.P_RC[q, d[:, None]])
         # greedy's rate for each option (F_w = 1; the best human classifier at that quality)
-        p_g, fin_g, _, _, _, _ = self._human_value(q, np.broadcast_to(d[:, None], q.shape),
-                                                    arrive, greedy=True)
-        delay = np.maximum(self.human_free[:, None, :] - t_r[:, None, None], 0.0)
-        net = (tables.expected_points(pts[:, None, None], p_g)
-               - s.human_time_cost * (tables.T_BAR[q, d[:, None]][..., None] + delay))
-        best = net.argmax(-1)
-        hum_net = np.where(np.take_along_axis(fin_g, best[..., None], -1)[..., 0]
-                           <= self.horizon, np.take_along_axis(net, best[..., None], -1)[..., 0],
-                           0.0)
+        hum_net = self._best_net(*self._greedy_net(
+            q, np.broadcast_to(d[:, None], q.shape), pts[:, None], arrive, t_r))
         human = np.arange(H + 1)[None, :] > 0
         value = np.maximum(hum_net, ev_on) - np.where(human, s.human_time_cost * leg, 0.0)
         rate = value / (arrive - t_r[:, None] + s.rate_offset_s)
         mask = np.concatenate([np.ones((E, 1), bool), self.high], 1) & (arrive <= self.horizon)
         mask[:, 0] = True
         hz = self.horizon
-        util = np.concatenate([np.zeros((E, 1)), np.diagonal(
-            self.utilisation_at(np.broadcast_to(free[:, 1:, None], (E, H, H))), 0, 1, 2)], 1)
+        util = np.concatenate([np.zeros((E, 1)), self.utilisation_at(free[:, None, 1:])[:, 0]],
+                              1)
         prev_n = np.zeros((E, H + 1))
         if self.previous is not None:
             prev_n = (np.arange(H + 1)[None, :] == self.previous.navigator[e, p][:, None] + 1)
@@ -429,12 +430,10 @@ class Decoder:
         p_h, fin, begin, u, f_w, f_f = (x[:, 0] for x in self._human_value(
             q[:, None], d[:, None], arrive[:, None], greedy=False))
         ev_h = np.where(fin <= self.horizon, tables.expected_points(pts[:, None], p_h), 0.0)
-        p_g, fin_g = (x[:, 0] for x in self._human_value(q[:, None], d[:, None],
-                                                          arrive[:, None], greedy=True)[:2])
-        delay = np.maximum(self.human_free - self.robot_free[e, r][:, None], 0.0)
+        net_g, fin_g = (x[:, 0] for x in self._greedy_net(q[:, None], d[:, None], pts[:, None],
+                                                          arrive[:, None], self.robot_free[e, r]))
+        net_g = np.where(fin_g <= self.horizon, net_g, 0.0)
         t_bar = tables.T_BAR[q, d]
-        net_g = np.where(fin_g <= self.horizon, tables.expected_points(pts[:, None], p_g)
-                         - s.human_time_cost * (t_bar[:, None] + delay), 0.0)
         p_on = tables.P_RC[q, d]
         ev_on = tables.expected_points(pts, p_on)
         hz = self.horizon
@@ -458,20 +457,24 @@ class Decoder:
         mask = np.ones((E, H + 1), bool)
         return StepInputs(feats.astype(np.float32), mask, prior, np.ones(E, bool))
 
-    def _arrival(self, p: np.ndarray, r: np.ndarray, n: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray]:
-        """Capture time and image quality of robot r at POI p with navigator n (-1 auto)."""
-        e, s = self.e, self.s
+    def _route(self, e, p, r, n) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Robot r to POI p with navigator n (-1 auto), in episodes e: when it sets off (with
+        its navigator free), its travel seconds and the image quality."""
         gx = self.tx[e, p] - self.robot_xy[e, r, 0]
         gy = self.ty[e, p] - self.robot_xy[e, r, 1]
-        dist = np.sqrt(gx * gx + gy * gy)
-        nav_h = np.maximum(n, 0)
-        cls_ = np.where(n >= 0, self.start.skill[e, nav_h], 1)
+        cls_ = tables.navigator_class(n[:, None], self.start.skill[e])[:, 0]
         v = self.start.speed[e, r] * np.where(n >= 0, tables.SKILL_SPEED[cls_], 1.0)
+        nav_h = np.maximum(n, 0)
         depart = np.where(n >= 0, np.maximum(self.robot_free[e, r], self.human_free[e, nav_h]),
                           self.robot_free[e, r])
         q = tables.QUALITY[self.start.robot_type[e, r], self.start.kind[e, p], cls_]
-        return depart + dist / np.maximum(v, 1e-9) + s.capture_s, q
+        return depart, np.sqrt(gx * gx + gy * gy) / np.maximum(v, 1e-9), q
+
+    def _arrival(self, p: np.ndarray, r: np.ndarray, n: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """Capture time and image quality of robot r at POI p with navigator n (-1 auto)."""
+        depart, travel, q = self._route(self.e, p, r, n)
+        return depart + travel + self.s.capture_s, q
 
     # -- commit ----------------------------------------------------------------------------------
     def commit(self, active: np.ndarray, p: np.ndarray, r: np.ndarray, n: np.ndarray,
@@ -485,8 +488,10 @@ class Decoder:
             return
         if self.previous is not None and s.rebrief_s > 0:
             self._charge(e, p, n, c)
-        arrive, q = self._arrival_at(e, p, r, n)
-        depart_nav = arrive - self._leg(e, p, r, n)
+        depart, travel, q = self._route(e, p, r, n)
+        leg = travel + s.capture_s
+        arrive = depart + leg
+        depart_nav = arrive - leg
         nb = n >= 0
         if nb.any():
             self._book(e[nb], n[nb], depart_nav[nb], arrive[nb])
@@ -500,24 +505,7 @@ class Decoder:
         self.n_assigned[e, r] += 1
         self.robot[e, p], self.nav[e, p], self.cls[e, p] = r, n, c
         self.left[e, p] = False
-        self.steps += 1
         self._cache = None
-
-    def _leg(self, e, p, r, n) -> np.ndarray:
-        gx = self.tx[e, p] - self.robot_xy[e, r, 0]
-        gy = self.ty[e, p] - self.robot_xy[e, r, 1]
-        nav_h = np.maximum(n, 0)
-        cls_ = np.where(n >= 0, self.start.skill[e, nav_h], 1)
-        v = self.start.speed[e, r] * np.where(n >= 0, tables.SKILL_SPEED[cls_], 1.0)
-        return np.sqrt(gx * gx + gy * gy) / np.maximum(v, 1e-9) + self.s.capture_s
-
-    def _arrival_at(self, e, p, r, n) -> tuple[np.ndarray, np.ndarray]:
-        nav_h = np.maximum(n, 0)
-        cls_ = np.where(n >= 0, self.start.skill[e, nav_h], 1)
-        depart = np.where(n >= 0, np.maximum(self.robot_free[e, r], self.human_free[e, nav_h]),
-                          self.robot_free[e, r])
-        q = tables.QUALITY[self.start.robot_type[e, r], self.start.kind[e, p], cls_]
-        return depart + self._leg(e, p, r, n), q
 
     def _charge(self, e, p, n, c) -> None:
         """Re-brief (in the projection) every human this choice first changes the work of."""

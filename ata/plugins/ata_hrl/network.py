@@ -18,15 +18,14 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
-import numpy as np
 import torch
 from torch import nn
 
 from ata.plugins.ata_hrl.decoder import (CLS_FEATURES, KEEP_FEATURES, NAV_FEATURES,
                                          POI_FEATURES, ROBOT_FEATURES)
+from ata.plugins.ata_hrl.features import GROUPS
 
 NEG = -1e9
-GROUPS = ("humans", "robots", "tasks")
 I_DIMS = {"humans": 5, "robots": 3, "tasks": 7}
 S_DIMS = {"humans": 4, "robots": 5, "tasks": 7}
 KINDS = ("poi", "robot", "nav", "cls")

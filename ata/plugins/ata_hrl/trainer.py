@@ -43,13 +43,11 @@ from ata.plugins.ata_hrl.checkpoint import (FORMAT, KIND, CheckpointError, net_f
                                             read_checkpoint)
 from ata.plugins.ata_hrl.components import (AttentionITA, AuxReconstructor, CTRPolicy,
                                             Recorder)
-from ata.plugins.ata_hrl.features import inherent_features, state_features, to_tensors
+from ata.plugins.ata_hrl.features import GROUPS, state_features, to_tensors
 from ata.plugins.ata_hrl.network import ATAHRLNet, FatigueCVAE, NetConfig
 from ata.plugins.ata_hrl.rewards import hierarchical_rewards, rewards_to_go
-from ata.training import TrainRun, resolve, trained_on
+from ata.training import VALIDATION_SEED_OFFSET, TrainRun, resolve, trained_on
 
-EVAL_SEED_OFFSET = 1_000_003
-"""Held-out validation during training uses root seed ``seed`` + this."""
 PHASE_BASE = {"aux": 0, "ita": 10_000_000, "ctr": 20_000_000}
 """First scenario id of each phase's range (root seed ``seed``)."""
 PHASE_SPAN = 10_000_000
@@ -66,7 +64,7 @@ class ATAHRLTrainer:
     @dataclass
     class Settings:
         seed: int = param(12345, min=0, max=2**40, help="root seed of the training scenarios "
-                          "(validation uses seed + 1000003)")
+                          f"(validation uses seed + {VALIDATION_SEED_OFFSET})")
         team_settings: list[str] = param(["a"], choices=("a", "b"), help="team settings "
                                          "trained on, in turn (a mixture when several)")
         batch_size: int = param(16, min=1, max=4096, help="scenarios per step")
@@ -158,7 +156,7 @@ class ATAHRLTrainer:
             if n * per_step > PHASE_SPAN:
                 raise MissionError(f"[{self.name}]", "batch_size", f"{phase}: {n} steps of "
                                    f"{per_step} scenarios overrun its range of {PHASE_SPAN} ids")
-        ranges.append((s.seed + EVAL_SEED_OFFSET, 0, s.eval_scenarios))
+        ranges.append((s.seed + VALIDATION_SEED_OFFSET, 0, s.eval_scenarios))
         for other in (s.ita_from, s.init_from):   # what another run's networks saw
             if other:
                 ranges += [r for r in trained_on(other, KIND) if r not in ranges]
@@ -185,7 +183,7 @@ class ATAHRLTrainer:
         self.run_folder = run
         torch.set_num_threads(self.s.threads)
         if resume:
-            self.load(run.checkpoint_path)
+            self.load(run.checkpoint_path, run.resume_checkpoint(KIND))
         else:
             if self.s.init_from:
                 self.take_ita(self.s.init_from, whole=True)
@@ -251,8 +249,9 @@ class ATAHRLTrainer:
             raise CheckpointError(path, "its networks do not fit the architecture: "
                                         f"{str(exc).splitlines()[0][:200]}") from None
 
-    def load(self, path) -> None:
-        data = read_checkpoint(path, KIND)
+    def load(self, path, data: dict[str, Any] | None = None) -> None:
+        """Resume from the checkpoint at `path` (its contents `data`, if already read)."""
+        data = data if data is not None else read_checkpoint(path, KIND)
         net = net_from_checkpoint(data, path, expect=self.cfg)
         self.net.load_state_dict(net.state_dict())
         try:
@@ -283,9 +282,7 @@ class ATAHRLTrainer:
     def _component(self, mission, slot_kind: str, name: str) -> Any:
         info = self.registry.get(slot_kind, name, "[components]")
         settings = mission.component_settings.get(name)
-        if issubclass(info.factory, (AttentionITA, CTRPolicy)):
-            return info.factory(settings, mission, net=self.net)
-        if issubclass(info.factory, AuxReconstructor):
+        if _is(info.factory, (AttentionITA, CTRPolicy, AuxReconstructor)):
             return info.factory(settings, mission, net=self.net)
         return build_component(self.registry, mission, slot_kind, name)
 
@@ -302,8 +299,7 @@ class ATAHRLTrainer:
                 initial.train_with(self.net, recorder, sampler)
         if phase == "ita" and not self.s.ita_reallocates:
             out["condition"] = build_component(self.registry, mission, "condition", "never")
-            out["reallocation"] = initial if isinstance(initial, AttentionITA) else \
-                self._component(mission, "policy", slots.reallocation)
+            out["reallocation"] = initial          # the ITA phase's initial is the ITA
         else:
             ctr = None
             if self.trains_cond or self.trains_tr:
@@ -339,10 +335,10 @@ class ATAHRLTrainer:
         team setting trained on, each decision by its mode."""
         totals, expected = [], []
         for setting in self.s.team_settings:
-            mission = self._mission(setting, self.s.seed + EVAL_SEED_OFFSET)
+            mission = self._mission(setting, self.s.seed + VALIDATION_SEED_OFFSET)
             with torch.no_grad():
-                record, _ = self.rollout(mission, np.arange(self.s.eval_scenarios),
-                                         phase if phase == "ita" else "ctr", train=False)
+                record, _ = self.rollout(mission, np.arange(self.s.eval_scenarios), phase,
+                                         train=False)
             totals.append(record.total.mean())
             expected.append(record.r_expected.sum(1).mean())
         return float(np.mean(totals)), float(np.mean(expected))
@@ -493,11 +489,7 @@ class ATAHRLTrainer:
             ids = np.repeat(self._ids(phase, step), s.samples)
             record, rec = self.rollout(mission, ids, phase, train=True)
             R, loss = self.rewards_and_loss(phase, record, rec)
-            self.opt.zero_grad()
-            loss.backward()
-            if s.grad_clip > 0:      # the policies' gradients only (not the reconstructors')
-                torch.nn.utils.clip_grad_norm_(self.policy_params, s.grad_clip)
-            self.opt.step()
+            self.update(loss)
             self.counters[phase] += 1
             self.counters["episodes"] += ids.size
             dt = time.perf_counter() - t0
@@ -516,6 +508,15 @@ class ATAHRLTrainer:
             if self.counters[phase] % s.checkpoint_every == 0:
                 self.save()
         self.save()
+
+    def update(self, loss: torch.Tensor) -> None:
+        """One Adam step of the policies on `loss`, their gradients clipped (not the
+        reconstructors')."""
+        self.opt.zero_grad()
+        loss.backward()
+        if self.s.grad_clip > 0:
+            torch.nn.utils.clip_grad_norm_(self.policy_params, self.s.grad_clip)
+        self.opt.step()
 
     def rewards_and_loss(self, phase: str, record, rec) -> tuple[dict, torch.Tensor]:
         """The paper's rewards of a training rollout (with their per-epoch rewards-to-go) and
@@ -597,7 +598,7 @@ class ATAHRLTrainer:
         logps, ents = [], []
         for k, (raw, seen) in enumerate(rec.cond_state):
             emb = self.net.tr.embed(emb_i, to_tensors(raw), to_tensors(seen))
-            pooled = torch.cat([emb[g] for g in ("humans", "robots", "tasks")], 1).mean(1)
+            pooled = torch.cat([emb[g] for g in GROUPS], 1).mean(1)
             logit, hidden = self.net.cond(pooled, torch.as_tensor(rec.cond_feats[k]),
                                           torch.as_tensor(rec.cond_prior[k]), hidden)
             two = torch.log_softmax(torch.stack([torch.zeros_like(logit), logit], -1), -1)
@@ -635,5 +636,5 @@ def shared_baseline_advantage(reward: np.ndarray, samples: int) -> np.ndarray:
     return (r - r.mean(1, keepdims=True)).reshape(-1)
 
 
-def _is(factory: Any, cls: type) -> bool:
+def _is(factory: Any, cls: type | tuple[type, ...]) -> bool:
     return isinstance(factory, type) and issubclass(factory, cls)

@@ -63,15 +63,15 @@ class GreedyPolicy:
     @hookimpl
     def ata_reallocate(self, ctx: DecisionContext, active: np.ndarray) -> Allocation:
         open_ = ctx.reallocatable & active[:, None]
-        full = plan(ctx, self.s, open_)
         cost = RetaskCost.of(ctx)
         if not self.s.retask_cost or cost.free or self.planned_attrs is None:
-            return full
-        return self._cheapest(ctx, open_, full, cost)
+            return plan(ctx, self.s, open_)
+        return self._cheapest(ctx, open_, cost)
 
-    def _cheapest(self, ctx: DecisionContext, open_: np.ndarray, full: Allocation,
+    def _cheapest(self, ctx: DecisionContext, open_: np.ndarray,
                   cost: "RetaskCost") -> Allocation:
-        """Keep, repair or re-plan in full, whichever is worth most net of its cost."""
+        """Keep, repair or re-plan in full (if `replan_in_full`), whichever is worth most net
+        of its cost."""
         prev, S = ctx.previous, ctx.observed
         attrs = _attrs(ctx)
         working = S["robots"].col("working") > 0.5
@@ -90,10 +90,12 @@ class GreedyPolicy:
             for field in ("robot", "navigator", "classifier"):
                 getattr(repair, field)[rows] = np.where(affected[rows], getattr(sub, field),
                                                         getattr(prev, field)[rows])
-        candidates = (prev, repair, full if self.s.replan_in_full else prev)
+        candidates = (prev, repair) + ((plan(ctx, self.s, open_),) if self.s.replan_in_full
+                                       else ())
         worth = np.stack([self._worth(ctx, start, c, open_, cost) for c in candidates], axis=1)
         best = np.zeros(worth.shape[0], dtype=np.int64)
-        for i in (1, 2):        # a change must gain more than it costs: keep wins ties
+        # a change must gain more than it costs: keep wins ties
+        for i in range(1, len(candidates)):
             best = np.where(worth[:, i] > worth[np.arange(best.size), best] + 1e-9, i, best)
         self.choices += np.bincount(best, minlength=3)
         out = prev.copy()

@@ -33,10 +33,8 @@ from ata.core.kernel import Simulation, build_component
 from ata.core.settings import param
 from ata.plugins.tr_pomdp import agents as dqn
 from ata.plugins.tr_pomdp.policy import KIND, TRPOMDPPolicy, Transition, agents_from_checkpoint
-from ata.training import CheckpointError, TrainRun, read_checkpoint
+from ata.training import VALIDATION_SEED_OFFSET, CheckpointError, TrainRun, read_checkpoint
 
-EVAL_SEED_OFFSET = 1_000_003
-"""Held-out validation during training uses root seed ``seed`` + this."""
 LOG_FIELDS = ["phase", "step", "episodes", "episodes_per_s", "loss", "mean_score", "epsilon",
               "eval_score", "wall_s"]
 KINDS = ("robot", "human")
@@ -176,7 +174,7 @@ class DQNTrainer:
     @dataclass
     class Settings:
         seed: int = param(12345, min=0, max=2**40, help="root seed of the training scenarios "
-                          "(validation uses seed + 1000003)")
+                          f"(validation uses seed + {VALIDATION_SEED_OFFSET})")
         batch_size: int = param(16, min=1, max=4096, help="episodes per step")
         steps: int = param(500, min=0, help="steps: each rolls out batch_size episodes with "
                            "epsilon-greedy agents, then makes `updates` gradient steps")
@@ -231,7 +229,7 @@ class DQNTrainer:
     def scenario_ranges(self) -> list[tuple[int, int, int]]:
         t = self.t
         return [(t.seed, 0, max(1, t.steps) * t.batch_size),
-                (t.seed + EVAL_SEED_OFFSET, 0, t.eval_scenarios)]
+                (t.seed + VALIDATION_SEED_OFFSET, 0, t.eval_scenarios)]
 
     def total_steps(self) -> int:
         return self.t.steps
@@ -252,8 +250,9 @@ class DQNTrainer:
         """``best.pt`` leaves out the replay buffers (it is for evaluation)."""
         self.run_folder.save(self.checkpoint(replay=name == "checkpoint.pt"), name)
 
-    def load(self, path) -> None:
-        data = read_checkpoint(path, KIND)
+    def load(self, path, data: dict[str, Any] | None = None) -> None:
+        """Resume from the checkpoint at `path` (its contents `data`, if already read)."""
+        data = data if data is not None else read_checkpoint(path, KIND)
         try:
             self.agents.load(data, path)
             torch.set_rng_state(data["rng"]["torch"])
@@ -279,7 +278,7 @@ class DQNTrainer:
 
     def evaluate(self) -> float:
         """Mean total team performance on held-out validation scenarios, greedy agents."""
-        mission = self.mission.replace(seed=self.t.seed + EVAL_SEED_OFFSET)
+        mission = self.mission.replace(seed=self.t.seed + VALIDATION_SEED_OFFSET)
         record = self.rollout(np.arange(self.t.eval_scenarios), mission, 0.0)
         return float(record.total.mean())
 
@@ -289,7 +288,7 @@ class DQNTrainer:
         t, learner = self.t, self.agents
         torch.set_num_threads(t.threads)
         if resume:
-            self.load(run.checkpoint_path)
+            self.load(run.checkpoint_path, run.resume_checkpoint(KIND))
         mission = self.mission.replace(seed=t.seed)
         while self.counters["dqn"] < t.steps:
             t0 = time.perf_counter()
