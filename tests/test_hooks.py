@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from ata import hookimpl
-from ata.core.errors import MissionError
+from ata.core.errors import ContractError, MissionError
 from ata.core.kernel import Simulation
 from ata.core.mission import validate
 from ata.core.registry import Register, collect_components, get_plugin_manager
@@ -286,7 +286,7 @@ def test_ata_initial_allocation_must_return_an_allocation():
     registry = registry_with(BASE, ("policy", "nothing", component(Nothing)))
     sim = simulation(registry, initial="nothing")
     sim.reset()
-    with pytest.raises(TypeError, match="initial policy 'nothing' returned NoneType, not an "
+    with pytest.raises(ContractError, match="initial policy 'nothing' returned NoneType, not an "
                                         "Allocation"):
         sim.step_epoch()
 

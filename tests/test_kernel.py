@@ -16,6 +16,7 @@ import pytest
 from _support import assert_trace
 from ata.core.runner import BASELINE_MISSION
 from ata import hookimpl
+from ata.core.errors import ContractError
 from ata.core.kernel import Simulation
 from ata.core.runner import load_session
 from ata.core.state import Allocation
@@ -243,7 +244,7 @@ def test_malformed_initial_allocation_raises_a_value_error_naming_the_slot(make,
     # one human, one robot, two POIs: robot must be 0, navigator and classifier -1 or 0
     sim = simulation(session(), {"initial": Bad(make)})
     sim.reset()
-    with pytest.raises(ValueError, match=r"^initial policy 'Bad': " + message):
+    with pytest.raises(ContractError, match=r"^initial policy 'Bad': " + message):
         sim.step_epoch()
     assert sim.sim.allocation is None
 
@@ -254,17 +255,29 @@ def test_malformed_reallocation_raises_a_value_error_naming_the_slot(make, messa
                      {"initial": Fixed([0, 0], [-1, -1], [-1, -1]), "reallocation": Bad(make)})
     sim.reset()
     sim.step_epoch()
-    with pytest.raises(ValueError, match=r"^reallocation policy 'Bad': " + message):
+    with pytest.raises(ContractError, match=r"^reallocation policy 'Bad': " + message):
         sim.step_epoch()
     # the allocation in force is untouched
     np.testing.assert_array_equal(sim.sim.allocation.stack(), [[[0, -1, -1], [0, -1, -1]]])
 
 
-def test_a_policy_returning_no_allocation_raises_a_type_error():
+def test_a_policy_returning_no_allocation_breaks_the_contract():
     sim = simulation(session(), {"initial": Bad(lambda B, P: (np.zeros((B, P)),) * 3)})
     sim.reset()
-    with pytest.raises(TypeError, match="initial policy 'Bad' returned tuple, not an Allocation"):
+    with pytest.raises(ContractError, match="initial policy 'Bad' returned tuple, not an "
+                                            "Allocation"):
         sim.step_epoch()
+
+
+def test_an_allocation_of_floats_is_refused_not_truncated():
+    # 0.9 would silently become robot 0 under astype(int)
+    sim = simulation(session(), {"initial": Bad(lambda B, P: Allocation(
+        np.full((B, P), 0.9), np.full((B, P), -1), np.full((B, P), -1)))})
+    sim.reset()
+    with pytest.raises(ContractError, match=r"^initial policy 'Bad': robot has dtype float64; "
+                                            "an allocation holds integer indices"):
+        sim.step_epoch()
+    assert sim.sim.allocation is None
 
 
 def test_a_condition_of_the_wrong_shape_raises_a_value_error():
@@ -272,7 +285,7 @@ def test_a_condition_of_the_wrong_shape_raises_a_value_error():
                                  "condition": Condition({1: [True, True]})})
     sim.reset()
     sim.step_epoch()
-    with pytest.raises(ValueError, match=r"condition policy 'Condition' returned shape \(2,\), "
+    with pytest.raises(ContractError, match=r"condition policy 'Condition' returned shape \(2,\), "
                                          r"expected \(1,\)"):
         sim.step_epoch()
 

@@ -1,4 +1,5 @@
-"""The one error a user's input can cause: it names the file, the key and what is allowed."""
+"""The errors the CLI reports as one message and exit 2: bad input (``MissionError``) and a component
+that breaks the kernel's contract (``ContractError``)."""
 
 from __future__ import annotations
 
@@ -24,3 +25,9 @@ class MissionError(Exception):
             place = f"{self.where} key {self.key!r}" if self.where else f"key {self.key!r}"
         prefix = f"{self.file}: " if self.file else ""
         return f"{prefix}{place}: {self.message}" if place else f"{prefix}{self.message}"
+
+
+class ContractError(ValueError):
+    """A component broke the kernel's contract (a wrong type, shape or dtype, a value out of
+    range): a bug in that component, not in the user's input. The message names the slot and
+    the component; the CLI prints it and exits 2."""

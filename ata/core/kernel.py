@@ -13,7 +13,7 @@ import numpy as np
 import pluggy
 
 from ata import hookspecs
-from ata.core.errors import MissionError
+from ata.core.errors import ContractError, MissionError
 from ata.core.mission import SLOT_KINDS, Mission
 from ata.core.registry import Register
 from ata.core.rng import BatchRNG
@@ -95,6 +95,8 @@ class Simulation:
                 hook_name, remove_plugins=[c for c in everyone if c is not component])
         self.sim.slot_call = self._callers
         self.inherent: Observation | None = None
+        self.last_context: DecisionContext | None = None
+        self._pending: DecisionContext | None = None   # the context of an epoch begun, not ended
 
     @property
     def batch_size(self) -> int:
@@ -118,28 +120,45 @@ class Simulation:
 
     def _check(self, alloc: Any, slot: str) -> Allocation:
         sim = self.sim
-        name = self._component_name(slot)
+        where = f"{slot} policy {self._component_name(slot)!r}"
         if not isinstance(alloc, Allocation):
-            raise TypeError(f"{slot} policy {name!r} returned {type(alloc).__name__}, "
-                            "not an Allocation")
+            raise ContractError(f"{where} returned {type(alloc).__name__}, not an Allocation")
         shape = (sim.batch_size, sim.sizes.tasks)
         for field, low, high in (("robot", 0, sim.sizes.robots), ("navigator", -1, sim.sizes.humans),
                                  ("classifier", -1, sim.sizes.humans)):
-            arr = getattr(alloc, field)
+            arr = np.asarray(getattr(alloc, field))
             if arr.shape != shape:
-                raise ValueError(f"{slot} policy {name!r}: {field} has shape {arr.shape}, "
-                                 f"expected {shape}")
+                raise ContractError(f"{where}: {field} has shape {arr.shape}, expected {shape} "
+                                    "(scenarios, POIs)")
+            if not np.issubdtype(arr.dtype, np.integer):
+                raise ContractError(f"{where}: {field} has dtype {arr.dtype}; an allocation "
+                                    "holds integer indices (a float is never truncated "
+                                    "silently)")
             if arr.size and (arr.min() < low or arr.max() >= high):
-                raise ValueError(f"{slot} policy {name!r}: {field} values must lie in "
-                                 f"[{low}, {high})")
-        return Allocation(alloc.robot.astype(np.int64), alloc.navigator.astype(np.int64),
-                          alloc.classifier.astype(np.int64))
+                raise ContractError(f"{where}: {field} values must lie in [{low}, {high}); "
+                                    f"got {arr.min()}..{arr.max()}")
+        return Allocation(np.asarray(alloc.robot, dtype=np.int64),
+                          np.asarray(alloc.navigator, dtype=np.int64),
+                          np.asarray(alloc.classifier, dtype=np.int64))
 
     def step_epoch(self) -> None:
-        """Run one decision epoch: observe, inject, reconstruct, decide, then its ticks."""
-        sim, hook, clock = self.sim, self.pm.hook, self.sim.clock
-        k = sim.epoch
-        sim.now = k * clock.epoch_s
+        """Run one decision epoch: observe, inject, reconstruct, decide, then its ticks.
+
+        It is `begin_epoch`, the decision of the mission's components (`decide`), then
+        `end_epoch`; an outside agent (the `ata.gym` environments) calls the two halves itself
+        and makes the decision in between.
+        """
+        self.end_epoch(*self.decide(self.begin_epoch()))
+
+    def begin_epoch(self) -> DecisionContext:
+        """The first part of an epoch, up to its decision: observe, inject and reconstruct at
+        t = epoch * epoch_s; return the context of the decision (kept as ``last_context``)."""
+        sim, hook = self.sim, self.pm.hook
+        if self._pending is not None:
+            raise RuntimeError(f"epoch {sim.epoch} has begun already: end it with end_epoch")
+        if sim.epoch >= sim.clock.n_epochs:
+            raise RuntimeError(f"the episode is over: all {sim.clock.n_epochs} epochs were run")
+        sim.now = sim.epoch * sim.clock.epoch_s
         truth = Observation()
         hook.ata_observe(sim=sim, obs=truth)
         observed = truth.copy()
@@ -147,22 +166,52 @@ class Simulation:
         recon: dict[str, np.ndarray] = {}
         hook.ata_reconstruct(sim=sim, obs=observed, inherent=self.inherent, out=recon)
         ctx = self._context(observed, truth, recon)
-        self.last_context = ctx
+        self.last_context = self._pending = ctx
+        return ctx
+
+    def decide(self, ctx: DecisionContext) -> tuple[Any, np.ndarray | None]:
+        """What the mission's own decision components decide at `ctx`: at epoch 0 (the initial
+        allocation, None); later (the reallocation policy's proposal, or None where the
+        condition policy reallocates no scenario; the condition policy's (B,) bool)."""
+        sim = self.sim
+        if ctx.epoch == 0:
+            return self._callers["initial"](ctx=ctx), None
+        active = np.asarray(self._callers["condition"](ctx=ctx), dtype=bool)
+        if active.shape != (sim.batch_size,):
+            name = self._component_name("condition")
+            raise ContractError(f"condition policy {name!r} returned shape {active.shape}, "
+                                f"expected ({sim.batch_size},)")
+        if not active.any():
+            return None, active
+        return self._callers["reallocation"](ctx=ctx, active=active), active
+
+    def end_epoch(self, allocation: Allocation | None, active: np.ndarray | None = None) -> None:
+        """The rest of the epoch begun by `begin_epoch`: apply its decision, run its ticks,
+        record it.
+
+        :param allocation: at epoch 0, the initial allocation; later, the proposed allocation of
+            the scenarios in `active` (None when there are none). Tasks outside the context's
+            ``reallocatable`` and the scenarios not in `active` keep their triples. It is checked
+            as the initial or the reallocation policy's answer.
+        :param active: (B,) bool, the scenarios that reallocate (unused at epoch 0).
+        """
+        sim, hook, clock, ctx = self.sim, self.pm.hook, self.sim.clock, self._pending
+        if ctx is None:
+            raise RuntimeError("no epoch has begun: call begin_epoch first")
+        k = sim.epoch
         if k == 0:
-            alloc = self._check(self._callers["initial"](ctx=ctx), "initial")
+            alloc = self._check(allocation, "initial")
             sim.allocation = alloc
             sim.log("allocate", k, int(sim.batch_size))
             hook.ata_allocation_changed(sim=sim, changed=np.ones(alloc.robot.shape, dtype=bool),
                                         previous=None)
         else:
-            active = np.asarray(self._callers["condition"](ctx=ctx), dtype=bool)
+            active = np.asarray(active, dtype=bool)
             if active.shape != (sim.batch_size,):
-                name = self._component_name("condition")
-                raise ValueError(f"condition policy {name!r} returned shape {active.shape}, "
-                                 f"expected ({sim.batch_size},)")
+                raise ContractError(f"active must have shape ({sim.batch_size},), got "
+                                    f"{active.shape}")
             if active.any():
-                proposed = self._check(self._callers["reallocation"](ctx=ctx, active=active),
-                                       "reallocation")
+                proposed = self._check(allocation, "reallocation")
                 allowed = active[:, None] & ctx.reallocatable
                 previous = sim.allocation
                 merged = proposed.where(allowed, previous)
@@ -173,6 +222,7 @@ class Simulation:
                 sim.log("reallocate", k, int(active.sum()), int(changed.sum()))
                 if changed.any():
                     hook.ata_allocation_changed(sim=sim, changed=changed, previous=previous)
+        self._pending = None
         sim.record.allocations[:, k] = sim.allocation.stack()
         for j in range(clock.ticks_per_epoch):
             sim.tick = k * clock.ticks_per_epoch + j
@@ -197,5 +247,9 @@ class Simulation:
             self.step_epoch()
             if on_epoch is not None:
                 on_epoch(self.sim.epoch)
+        return self.end_episode()
+
+    def end_episode(self) -> EpisodeRecord:
+        """After the last epoch: the components write their per-scenario results; the record."""
         self.pm.hook.ata_episode_end(sim=self.sim)
         return self.sim.record
