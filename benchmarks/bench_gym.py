@@ -1,0 +1,72 @@
+"""Gymnasium adapter throughput: N single environments against one vector environment of N.
+
+Usage: python benchmarks/bench_gym.py [--envs 64] [--rounds 5] [--seed 0]
+
+For each team (the small custom team of examples/missions/gym_small_team.toml, and setting (a)),
+steps `--envs` copies of `ata.gym.CentralisedEnv` under Gymnasium's `SyncVectorEnv` (one
+`Simulation` of one scenario each, stepped one after the other) and one
+`ata.gym.CentralisedVectorEnv` of `--envs` scenarios (one `Simulation` for all, one kernel call
+per epoch), with the same random masked policy (`ata.gym.sample_masked` on the action masks),
+for `--rounds` episodes per environment. Prints episodes per second of each, their ratio, and
+the wall times. Both are measured in the same run: this machine is shared and noisy, so compare
+ratios, not absolute figures across runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+from gymnasium.vector import SyncVectorEnv
+from rich.console import Console
+from rich.table import Table
+
+from ata.core.runner import BASELINE_MISSION, load_session
+from ata.gym import CentralisedEnv, CentralisedVectorEnv, sample_masked
+
+SMALL_TEAM = Path(__file__).resolve().parent.parent / "examples" / "missions" / \
+    "gym_small_team.toml"
+TEAMS = {"small (H/R/P 2/3/10, T 15)": str(SMALL_TEAM),
+         "(a) (H/R/P 6/8/60, T 30)": str(BASELINE_MISSION)}
+
+
+def episodes_per_second(envs, rounds: int, seed: int) -> tuple[float, float]:
+    """(episodes per second, wall seconds) of `rounds` episodes in every sub-environment under
+    the random masked policy; the autoreset steps are part of the time."""
+    rng = np.random.default_rng(seed)
+    nvec = envs.single_action_space.nvec
+    t0 = time.perf_counter()
+    _, info = envs.reset(seed=seed)
+    done = 0
+    while done < rounds * envs.num_envs:
+        _, _, terminated, _, info = envs.step(sample_masked(info["action_mask"], nvec, rng))
+        done += int(terminated.sum())
+    wall = time.perf_counter() - t0
+    return done / wall, wall
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--envs", type=int, default=64, help="environments N")
+    parser.add_argument("--rounds", type=int, default=5, help="episodes per environment")
+    parser.add_argument("--seed", type=int, default=0, help="root seed and policy seed")
+    args = parser.parse_args()
+    table = Table(title=f"ata.gym throughput, N = {args.envs} (episodes per second)")
+    for col in ("team", "N single", "vector", "ratio", "wall single", "wall vector"):
+        table.add_column(col, justify="left" if col == "team" else "right")
+    for team, path in TEAMS.items():
+        session = load_session(path)
+        single = SyncVectorEnv([lambda: CentralisedEnv(session)] * args.envs)
+        vector = CentralisedVectorEnv(session, num_envs=args.envs)
+        eps_single, wall_single = episodes_per_second(single, args.rounds, args.seed)
+        eps_vector, wall_vector = episodes_per_second(vector, args.rounds, args.seed)
+        table.add_row(team, f"{eps_single:,.1f}", f"{eps_vector:,.1f}",
+                      f"{eps_vector / eps_single:.1f}x", f"{wall_single:.1f} s",
+                      f"{wall_vector:.1f} s")
+    Console().print(table)
+
+
+if __name__ == "__main__":
+    main()
