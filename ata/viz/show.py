@@ -1,0 +1,85 @@
+"""`ata show`: replay one scenario of a run folder or a mission file with the recorder attached,
+and draw it.
+
+A run folder is read through its ``mission.resolved.toml``; the replay runs the one scenario as a
+batch of one, which gives the results it had in the run (a scenario's numbers depend on the root
+seed and its id alone), and is checked against the run's ``results.csv`` row.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+from ata.core import runner
+from ata.core.errors import MissionError
+from ata.viz import draw
+from ata.viz.record import Episode, replay
+
+RUN_MISSION = "mission.resolved.toml"
+"""The mission file of a run folder (written by `ata run`)."""
+
+
+@dataclass
+class Shown:
+    """What `show` did: the episode, the files written, and the run's score for the scenario
+    (None when there is no run folder, no row for it, or the mission was overridden)."""
+
+    episode: Episode
+    written: list[Path]
+    out_dir: Path
+    run_score: float | None
+    results: Path | None
+
+
+def mission_of(target: str | None) -> tuple[str, Path | None]:
+    """The mission file to replay and the run folder it belongs to (None for a mission file;
+    the built-in mission when `target` is None)."""
+    if target is None:
+        return str(runner.BUILTIN_MISSION), None
+    path = Path(target)
+    if path.is_dir():
+        if not (path / RUN_MISSION).is_file():
+            raise MissionError("", None, f"no {RUN_MISSION} here: not a run folder (give a "
+                               "folder written by ata run, or a mission file)", file=str(path))
+        return str(path / RUN_MISSION), path
+    return str(path), None
+
+
+def run_score(run_dir: Path, scenario: int) -> float | None:
+    """The score of `scenario` in the run folder's results.csv, or None without one."""
+    path = run_dir / "results.csv"
+    if not path.is_file():
+        return None
+    with open(path, newline="", encoding="utf-8") as f:
+        for row in csv.DictReader(f):
+            if row.get("scenario") == str(scenario):
+                return float(row["score"])
+    return None
+
+
+def show(target: str | None, scenario: int | None, overrides: list[str] | None = None,
+         out: str | Path | None = None) -> Shown:
+    """Replay `scenario` (default: the mission's first) of a run folder or mission file and
+    write its three pictures, PNG and SVG, to `out` (default: RUN_DIR/show-N, or
+    runs/show-NAME-N). Bad input raises MissionError before anything runs or is written."""
+    source, run_dir = mission_of(target)
+    session = runner.load_session(source, list(overrides or []))
+    m = session.mission
+    ids = runner.scenario_ids(m)
+    first, last = int(ids[0]), int(ids[-1])
+    scenario = first if scenario is None else scenario
+    if not first <= scenario <= last:
+        raise MissionError("--scenario", None, f"{scenario} is not one of the mission's "
+                           f"scenarios: ids {first} to {last}", file=source)
+    draw.figure_class()                   # no matplotlib: say so before the replay
+    episode = replay(m, session.registry, scenario)
+    if out is None:
+        out = (run_dir / f"show-{scenario}" if run_dir is not None else
+               runner.default_out_dir(m).parent / f"show-{m.settings.name}-{scenario}")
+    written = draw.write_figures(episode, out)
+    checked = run_dir is not None and not overrides
+    score = run_score(run_dir, scenario) if checked else None
+    return Shown(episode=episode, written=written, out_dir=Path(out), run_score=score,
+                 results=run_dir / "results.csv" if score is not None else None)
