@@ -416,7 +416,7 @@ def test_report_command_writes_markdown_and_figures(cli, tmp_path):
     assert "| greedy | 4 | 17.5 [" in md and "| 0.625 |" in md
     figs = sorted(p.name for p in tmp_path.glob("fig_*"))
     assert figs == sorted(f"{stem}.{ext}" for stem in ("fig_setting_a", "fig_setting_b",
-                                                       "fig_ablations")
+                                                       "fig_ablations", "fig_paired")
                           for ext in ("png", "svg"))
     assert all((tmp_path / f).stat().st_size > 1000 for f in figs)
 
@@ -443,7 +443,9 @@ def test_report_skips_absent_figures(tmp_path):
         writer.writeheader()
         writer.writerows(rows)
     rep.write_report(tmp_path)
-    assert sorted(p.name for p in tmp_path.glob("fig_*")) == ["fig_setting_a.png",
+    assert sorted(p.name for p in tmp_path.glob("fig_*")) == ["fig_paired.png",
+                                                             "fig_paired.svg",
+                                                             "fig_setting_a.png",
                                                              "fig_setting_a.svg"]
 
 
