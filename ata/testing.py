@@ -8,6 +8,10 @@ the component is accepted by the kernel, policies return legal allocations, the 
 keeps its tables and shapes, and a scenario's results do not depend on the batch it runs in
 (components must draw from ``sim.rng``/``ctx.rng`` streams, never from a shared generator).
 Each failure raises ``AssertionError`` with what broke.
+
+A policy fills the slots whose hooks it implements: with ``ata_initial_allocation`` the initial
+slot (else ``greedy`` does); with ``ata_reallocate`` the reallocation slot, called at every
+epoch (else ``keep`` fills it and the condition is ``never``). See docs/plugins.md.
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ata import hookimpl
+from ata.core.errors import ContractError
 from ata.core.kernel import Simulation
 from ata.core.mission import Mission, validate
 from ata.core.registry import collect_components, get_plugin_manager
@@ -51,11 +56,18 @@ def _mission(kind: str, name: str, factory: Callable[..., Any], settings: dict |
         base = ["fatigue_noise", "attribute_change", "robot_failure", "latency"] \
             if slot == "injectors" else []
         raw["components"][slot] = base + [name]
+    elif kind == "policy":
+        # a policy fills the slots whose hooks it implements; built-ins fill the others
+        initial = hasattr(factory, "ata_initial_allocation")
+        realloc = hasattr(factory, "ata_reallocate")
+        if not (initial or realloc):
+            raise AssertionError(f"policy {name!r} implements neither ata_initial_allocation "
+                                 "nor ata_reallocate")
+        raw["components"]["initial"] = name if initial else "greedy"
+        raw["components"]["reallocation"] = name if realloc else "keep"
+        raw["components"]["condition"] = "always" if realloc else "never"
     else:
         raw["components"][slot] = name
-        if kind == "policy":
-            raw["components"]["reallocation"] = name
-            raw["components"]["condition"] = "always"
     if settings:
         raw[name] = settings
     return validate(raw, registry, source=f"<check {kind} {name}>"), registry
@@ -85,7 +97,7 @@ def check_component(kind: str, factory: Callable[..., Any], *, name: str = "unde
     ids = list(range(m.settings.scenarios))
     try:
         r_perf, observations = _run(m, registry, ids)
-    except (TypeError, ValueError) as exc:   # the kernel's contract checks
+    except ContractError as exc:   # the kernel's contract checks
         raise AssertionError(f"{kind} {name!r} broke the kernel's contract: {exc}") from exc
     assert np.isfinite(r_perf).all(), "r_perf has non-finite values"
     for k, obs in enumerate(observations):

@@ -91,13 +91,11 @@ def test_cli_plugins_lists_it_with_its_version(dropout, cli):
     result = cli("plugins")
     assert result.exit_code == 0, result.output
     row = next(line for line in result.output.splitlines() if " ata_dropout " in line)
-    assert "ata-dropout 0.1.0" in row
-    assert "injector:sensor_dropout" in row
-    assert "ata_register_components" in row
+    assert row.split() == ["sensor_dropout", "injector", "ata_dropout", "ata-dropout", "0.1.0"]
 
     verbose = " ".join(cli("plugins", "--verbose").output.split())
-    assert "[sensor_dropout] (injector, from ata_dropout)" in verbose
-    assert "probability │ a number │ 0.2 │" in verbose
+    assert "[sensor_dropout] injector, from ata_dropout; hooks: ata_inject" in verbose
+    assert "probability = 0.2 (a number, 0.0 to 1.0)" in verbose
 
 
 # --- the injector --------------------------------------------------------------------------------
@@ -207,3 +205,52 @@ def test_misspelt_hook_in_an_installed_plugin_exits_2(tmp_path, monkeypatch, cli
         assert text.startswith("error: a plugin failed validation: unknown hook 'ata_setpu' in "
                                "plugin <module 'ata_misspelt'")
         assert "did you mean 'ata_setup'?" in text
+
+
+# --- a component that breaks the kernel's contract: one message naming it, exit 2 ---------------
+
+BROKEN_POLICY = '''\
+import numpy as np
+
+from ata import hookimpl
+from ata.core.state import Allocation
+
+
+class Transposed:
+    """Returns (POIs, scenarios) instead of (scenarios, POIs)."""
+
+    def __init__(self, settings, mission):
+        pass
+
+    @hookimpl
+    def ata_initial_allocation(self, ctx):
+        B, P = ctx.reallocatable.shape
+        zeros = np.zeros((P, B), dtype=np.int64)
+        return Allocation(zeros, zeros - 1, zeros - 1)
+
+
+@hookimpl
+def ata_register_components(register):
+    register("policy", "transposed", Transposed)
+'''
+
+
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_a_policy_of_the_wrong_shape_exits_2_with_one_message(tmp_path, monkeypatch, cli,
+                                                              workers):
+    site = tmp_path / "site"
+    site.mkdir()
+    (site / "ata_transposed.py").write_text(BROKEN_POLICY)
+    fake_install(site, monkeypatch, "ata-transposed", "ata_transposed")
+    monkeypatch.setenv("PYTHONPATH", str(site))   # for the worker processes
+    mission = tmp_path / "m.toml"
+    mission.write_text('[mission]\nscenarios = 4\nbatch_size = 2\n\n[components]\n'
+                       'initial = "transposed"\ncondition = "never"\nreallocation = "greedy"\n')
+    result = cli("run", mission, "-q", "--workers", workers, "--out", tmp_path / "out")
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    lines = [ln for ln in result.output.splitlines() if ln.strip()]
+    assert len(lines) == 1, result.output
+    assert lines[0] == ("error: a component broke the kernel's contract: initial policy "
+                        "'transposed': robot has shape (60, 2), expected (2, 60) (scenarios, "
+                        "POIs)")

@@ -39,6 +39,7 @@ BUILTIN_PLUGINS = (
     "ata.plugins.policies.random_policy",
     "ata.plugins.policies.greedy",
     "ata.plugins.policies.milp",
+    "ata.plugins.policies.keep",
 )
 """Default-tier plugins, always loaded."""
 

@@ -243,7 +243,7 @@ class DecisionContext:
     sizes: TeamSize
     clock: Clock
     inherent: Observation               # I: humans, robots, tasks (task attributes as estimated)
-    observed: Observation | None        # S after the injectors; None at t = 0
+    observed: Observation | None        # S after the injectors (at t = 0 too)
     reconstructed: dict[str, np.ndarray]  # reconstructors' outputs by name
     previous: Allocation | None         # the allocation in force; None at t = 0
     reallocatable: np.ndarray           # (B, P) bool: tasks whose triple may change now

@@ -1,1 +1,1 @@
-"""Allocation policies: random and greedy (learned ones come as optional plugins)."""
+"""Allocation policies: random, greedy, the MILP and keep (learned ones come as optional plugins)."""
