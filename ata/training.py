@@ -135,6 +135,11 @@ class TrainRun:
         self._resumed: dict[str, Any] | None = None     # checkpoint.pt, read once on resume
         self.dir.mkdir(parents=True, exist_ok=True)
         if not resume:
+            held = [n for n in ("checkpoint.pt", "best.pt", "log.csv") if (self.dir / n).exists()]
+            if held:
+                raise MissionError("--out", None, f"{self.dir} holds a training run already "
+                                   f"({', '.join(held)}): resume it with --resume {self.dir}, "
+                                   "or choose another folder")
             (self.dir / "mission.resolved.toml").write_text(mission_toml, encoding="utf-8")
             with open(self.dir / "log.csv", "w", newline="") as f:
                 csv.DictWriter(f, fieldnames=self.fields).writeheader()

@@ -39,7 +39,7 @@ from ata.core.executors import Executor
 from ata.core.kernel import Simulation
 from ata.core.mission import UNCERTAINTY_LEVELS, Mission
 from ata.core.registry import collect_components, get_plugin_manager
-from ata.core.runner import Session, load_session, run_batch
+from ata.core.runner import Session, load_session, new_folder, run_batch
 
 EVAL_FIRST_SCENARIO = 2 ** 40
 """The first scenario id of every evaluation: far above any id training uses."""
@@ -525,7 +525,7 @@ def default_out_dir(suites: list[Suite]) -> Path:
     label = "+".join(names) if len(names) <= 3 else "suite"
     stamp = time.strftime("%Y%m%d-%H%M%S")
     base = Path(os.environ.get("ATA_RUNS", "runs"))
-    return base / f"eval-{safe_name(label)}-{stamp}"
+    return new_folder(base / f"eval-{safe_name(label)}-{stamp}")
 
 
 def default_cache_dir() -> Path:

@@ -234,7 +234,37 @@ def write_run(out_dir: str | Path, session: Session, result: RunResult) -> Path:
     return out
 
 
-def default_out_dir(mission: Mission) -> Path:
+def default_out_dir(mission: Mission, prefix: str = "") -> Path:
+    """A new folder runs/[PREFIX]NAME-TIME ($ATA_RUNS for runs), created now: two runs started in
+    the same second get NAME-TIME and NAME-TIME-2."""
     stamp = time.strftime("%Y%m%d-%H%M%S")
     base = Path(os.environ.get("ATA_RUNS", "runs"))
-    return base / f"{mission.settings.name}-{stamp}"
+    return new_folder(base / f"{prefix}{mission.settings.name}-{stamp}")
+
+
+def new_folder(path: Path) -> Path:
+    """Create path, or path-2, path-3 ... if it exists (atomically: mkdir fails on a taken name)."""
+    prepare_out_dir(path.parent)
+    for n in range(1, 10_000):
+        candidate = path if n == 1 else path.with_name(f"{path.name}-{n}")
+        try:
+            candidate.mkdir()
+            return candidate
+        except FileExistsError:
+            continue
+    raise MissionError("--out", None, f"no free folder name like {path}")
+
+
+def prepare_out_dir(path: Path) -> Path:
+    """Create the output folder and check that it can be written, before any work is done; a
+    path under a file or a folder without write permission is one clear error."""
+    path = Path(path)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        probe = path / f".ata-write-check-{os.getpid()}"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        raise MissionError("--out", None, f"cannot write to {path}: "
+                           f"{exc.strerror or exc}") from None
+    return path

@@ -8,6 +8,7 @@ the short way to write such a field.
 from __future__ import annotations
 
 import dataclasses
+import math
 import typing
 from typing import Any
 
@@ -80,6 +81,8 @@ def _check_range(value: Any, meta: dict, where: str, key: str) -> None:
     lo, hi, choices = meta.get("min"), meta.get("max"), meta.get("choices")
     items = value if isinstance(value, list) else [value]
     for v in items:
+        if isinstance(v, float) and not math.isfinite(v):
+            raise MissionError(where, key, f"{v!r} is not allowed; a finite number is needed")
         if choices is not None and v not in choices:
             raise MissionError(where, key, f"{v!r} is not allowed; choose one of "
                                + ", ".join(repr(c) for c in choices))
@@ -96,6 +99,15 @@ def _range_text(lo: Any, hi: Any) -> str:
     if lo is not None and hi is not None:
         return f"{lo} to {hi}"
     return f"at least {lo}" if lo is not None else f"at most {hi}"
+
+
+def allowed_text(meta: dict) -> str:
+    """What a field accepts beyond its type: its choices or its range ("" when anything)."""
+    if meta.get("choices") is not None:
+        return "one of " + ", ".join(repr(c) for c in meta["choices"])
+    if meta.get("min") is not None or meta.get("max") is not None:
+        return _range_text(meta.get("min"), meta.get("max"))
+    return ""
 
 
 def build_settings(cls: type, table: dict[str, Any] | None, where: str) -> Any:
@@ -126,11 +138,13 @@ def settings_dict(obj: Any) -> dict[str, Any]:
     return {k: v for k, v in dataclasses.asdict(obj).items() if v is not None}
 
 
-def describe(cls: type) -> list[tuple[str, str, Any, str]]:
-    """(key, type, default, help) for every field, for `ata plugins --verbose` and the docs."""
+def describe(cls: type) -> list[tuple[str, str, Any, str, str]]:
+    """(key, type, default, allowed values, help) for every field, for `ata plugins --verbose`
+    and the docs."""
     hints = typing.get_type_hints(cls)
     rows = []
     for f in dataclasses.fields(cls):
         default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
-        rows.append((f.name, _type_name(hints[f.name]), default, f.metadata.get("help", "")))
+        rows.append((f.name, _type_name(hints[f.name]), default, allowed_text(dict(f.metadata)),
+                     f.metadata.get("help", "")))
     return rows

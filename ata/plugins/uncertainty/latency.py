@@ -19,7 +19,8 @@ class Latency:
     class Settings:
         probability: float | None = param(None, min=0.0, max=1.0,
                                           help="per-row probability; default: the level's p")
-        groups: list[str] = param(["robots", "tasks"], help="entity groups that lag")
+        groups: list[str] = param(["robots", "tasks"], choices=("humans", "robots", "tasks"),
+                                  help="entity groups that lag")
 
     def __init__(self, settings: "Latency.Settings", mission):
         self.p = (settings.probability if settings.probability is not None
