@@ -11,15 +11,32 @@ from typing import Callable, List, Optional
 import typer
 from rich.console import Console
 from rich.markup import escape
+from rich.padding import Padding
 from rich.progress import (BarColumn, Progress, ProgressColumn, TaskProgressColumn,
                            TextColumn, TimeElapsedColumn, TimeRemainingColumn)
-from rich.table import Table
+from rich.table import Column, Table
 from rich.text import Text
 
 from ata import __version__
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="ATA: adaptive task allocation in multi-human multi-robot teams.")
+
+
+def _help_without_type_tags() -> None:
+    """Recent typer prints a Python type after every parameter in help pages (``<bool>`` after
+    a flag, ``<list[str]>`` after an argument). Our parameters name their values in their
+    metavars (FILE, DIR, N) and flags take none: print no type tag but an option's metavar."""
+    from typer import core
+
+    for cls in (getattr(core, "TyperArgument", None), getattr(core, "TyperOption", None)):
+        if cls is not None and hasattr(cls, "display_type_rich"):
+            cls.display_type_rich = lambda self, ctx: (
+                None if getattr(self, "is_flag", False) or isinstance(self, core.TyperArgument)
+                else self.metavar)
+
+
+_help_without_type_tags()
 
 
 class _LazyConsole:
@@ -56,9 +73,13 @@ def user_errors(func: Callable) -> Callable:
     def wrapper(*args, **kwargs):
         import pluggy
 
-        from ata.core.errors import MissionError
+        from ata.core.errors import ContractError, MissionError
         try:
             return func(*args, **kwargs)
+        except ContractError as exc:
+            err_console.print(f"[bold red]error:[/] a component broke the kernel's contract: "
+                              f"{escape(str(exc))}", highlight=False, soft_wrap=True)
+            raise typer.Exit(2) from None
         except MissionError as exc:
             # escape: the message names tables as [mission], which rich would take for markup
             err_console.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False,
@@ -91,13 +112,13 @@ def main(version: bool = typer.Option(False, "--version", callback=_version_call
 @app.command()
 @user_errors
 def run(mission: Optional[str] = typer.Argument(
-            None, help="Mission file (TOML). Default: the built-in mission, setting (a), "
+            None, metavar="MISSION", help="Mission file (TOML). Default: the built-in mission, setting (a), "
                        "medium uncertainty."),
         set_: Optional[List[str]] = SetOption,
         plugins: Optional[str] = PluginsOption,
-        out: Optional[Path] = typer.Option(None, "--out", "-o",
+        out: Optional[Path] = typer.Option(None, "--out", "-o", metavar="DIR",
                                            help="Run folder (default: runs/NAME-TIME)."),
-        workers: Optional[int] = typer.Option(None, "--workers", "-w", min=1,
+        workers: Optional[int] = typer.Option(None, "--workers", "-w", min=1, metavar="N",
                                               help="Worker processes (default: the mission's)."),
         quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar.")) -> None:
     """Run a mission and print its summary; write results beside the resolved mission."""
@@ -105,6 +126,8 @@ def run(mission: Optional[str] = typer.Argument(
 
     session = runner.load_session(mission, set_ or [], _split(plugins))
     m = session.mission
+    # the output folder is made and checked before any scenario runs
+    out_dir = runner.prepare_out_dir(out) if out else runner.default_out_dir(m)
     total = m.settings.scenarios * m.clock.n_epochs
     columns = [TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
                SpeedColumn(), TimeElapsedColumn(), TimeRemainingColumn()]
@@ -113,33 +136,38 @@ def run(mission: Optional[str] = typer.Argument(
                                  total=total)
         result = runner.run_mission(session, progress=lambda n: progress.advance(task, n),
                                     workers=workers)
-    out_dir = runner.write_run(out or runner.default_out_dir(m), session, result)
+    runner.write_run(out_dir, session, result)
     render_summary(session, result)
     console.print(f"results: {out_dir}")
 
 
 def render_summary(session, result) -> None:
-    """The summary table of a run."""
+    """The summary of a run: a key per line, readable at 80 columns."""
+    from rich import box
+
     from ata.core.runner import summarize
 
     m, s = session.mission, summarize(result)
-    slots = m.slots
-    table = Table(title=f"{m.settings.name}: setting {m.settings.setting} "
-                        f"({m.sizes.humans} humans, {m.sizes.robots} robots, {m.sizes.tasks} POIs), "
-                        f"{m.settings.uncertainty} uncertainty, seed {m.settings.seed}")
-    table.add_column("method")
-    table.add_column("scenarios", justify="right")
-    table.add_column("total team performance (95% CI)", justify="right")
-    table.add_column("fraction of U", justify="right")
-    table.add_column("POIs classified", justify="right")
-    table.add_column("reallocations", justify="right")
-    table.add_column("wall time", justify="right")
-    method = f"{slots.initial} / {slots.condition} / {slots.reallocation}"
-    table.add_row(method, str(s["scenarios"]),
-                  f"{s['score_mean']:.1f} ± {s['score_ci95']:.1f}",
-                  f"{s['fraction_of_u']:.3f}",
-                  f"{100 * s.get('classified_share_mean', float('nan')):.1f}%",
-                  f"{s['reallocations_mean']:.2f}", f"{s['wall_s']:.1f} s")
+    table = Table(title=escape(f"{m.display_name()}: {m.settings.name}"), box=box.SIMPLE,
+                  show_header=False, title_justify="left")
+    table.add_column("what", style="bold", no_wrap=True)
+    table.add_column("value", overflow="fold")
+    table.add_row("method", escape(m.method_label()))
+    table.add_row("team", f"setting {m.settings.setting}: {m.sizes.humans} humans, "
+                          f"{m.sizes.robots} robots, {m.sizes.tasks} POIs")
+    table.add_row("uncertainty", f"{m.settings.uncertainty} (fatigue variance "
+                                 f"{m.fatigue_variance}, event probability "
+                                 f"{m.event_probability})")
+    first = m.settings.first_scenario
+    table.add_row("scenarios", f"{s['scenarios']} (ids {first}..{first + s['scenarios'] - 1}, "
+                               f"root seed {m.settings.seed})")
+    table.add_row("team performance", f"{s['score_mean']:.1f} ± {s['score_ci95']:.1f} "
+                                      "(mean ± 95% CI half-width)")
+    table.add_row("fraction of U", f"{s['fraction_of_u']:.3f} (U: the capacity-free bound)")
+    table.add_row("POIs classified",
+                  f"{100 * s.get('classified_share_mean', float('nan')):.1f}%")
+    table.add_row("reallocations", f"{s['reallocations_mean']:.2f} per scenario")
+    table.add_row("wall time", f"{s['wall_s']:.1f} s")
     console.print(table)
     for warning in result.warnings:
         err_console.print(f"[yellow]warning:[/] {escape(warning)}", highlight=False)
@@ -148,7 +176,7 @@ def render_summary(session, result) -> None:
 @app.command()
 @user_errors
 def train(mission: Optional[str] = typer.Argument(
-              None, help="Training mission (TOML) naming a trainer in \\[components]. Default: "
+              None, metavar="MISSION", help="Training mission (TOML) naming a trainer in \\[components]. Default: "
                          "the built-in training mission of the --plugins given."),
           set_: Optional[List[str]] = SetOption,
           plugins: Optional[str] = typer.Option(
@@ -157,8 +185,9 @@ def train(mission: Optional[str] = typer.Argument(
                    "optional plugins: ctr,aux (the default) the full ATA-HRL; ctr w/o.AUX; ita "
                    "the ITA alone; trp TR-POMDP; ita,trp AtRL-TR. w/o.C: add --set "
                    "components.condition=always."),
-          out: Optional[Path] = typer.Option(None, "--out", "-o", help="Run folder."),
-          resume: Optional[Path] = typer.Option(None, "--resume",
+          out: Optional[Path] = typer.Option(None, "--out", "-o", metavar="DIR",
+                                             help="Run folder."),
+          resume: Optional[Path] = typer.Option(None, "--resume", metavar="DIR",
                                                 help="Resume the run in this folder."),
           quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar.")) -> None:
     """Train the learned components of a mission with the trainer it names (ata_hrl: ATA-HRL
@@ -178,14 +207,22 @@ def train(mission: Optional[str] = typer.Argument(
         source = mission or str(runner.training_mission_for(names or ["ctr", "aux"]))
         # a mission file brings its own plugins; --plugins, when given, adds to them
         session = runner.load_session(source, list(set_ or []), names if mission else None)
-        stamp = runner.default_out_dir(session.mission)
-        run_dir = out or stamp.with_name("train-" + stamp.name)
+        run_dir = (runner.prepare_out_dir(out) if out
+                   else runner.default_out_dir(session.mission, prefix="train-"))
     trainer = runner.build_trainer(session)
     m = session.mission
-    columns = [TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
-               TextColumn("{task.fields[status]}"), TimeElapsedColumn(), TimeRemainingColumn()]
+    # the bar and the times keep their width; the status gives way (cut short) at 80 columns
+    title = f"train {m.settings.name}"
+    columns = [TextColumn("[bold]{task.description}",
+                          table_column=Column(no_wrap=True, min_width=len(title))),
+               BarColumn(bar_width=16, table_column=Column(no_wrap=True, min_width=16)),
+               TaskProgressColumn(table_column=Column(no_wrap=True, min_width=4)),
+               TimeElapsedColumn(table_column=Column(no_wrap=True, min_width=7)),
+               TimeRemainingColumn(table_column=Column(no_wrap=True, min_width=7)),
+               TextColumn("{task.fields[status]}",
+                          table_column=Column(no_wrap=True, overflow="ellipsis", ratio=1))]
     with Progress(*columns, console=Console(stderr=True), disable=quiet) as progress:
-        task = progress.add_task(f"train {m.settings.name}", total=trainer.total_steps(),
+        task = progress.add_task(title, total=trainer.total_steps(),
                                  status="")
 
         def on_row(row: dict) -> None:
@@ -211,7 +248,7 @@ def train(mission: Optional[str] = typer.Argument(
 
 @app.command()
 @user_errors
-def check(mission: str = typer.Argument(..., help="Mission file (TOML)."),
+def check(mission: str = typer.Argument(..., metavar="MISSION", help="Mission file (TOML)."),
           set_: Optional[List[str]] = SetOption,
           plugins: Optional[str] = PluginsOption,
           show: bool = typer.Option(False, "--show", help="Print the resolved mission.")) -> None:
@@ -235,41 +272,55 @@ def check(mission: str = typer.Argument(..., help="Mission file (TOML)."),
 @app.command()
 @user_errors
 def plugins(verbose: bool = typer.Option(False, "--verbose", "-v",
-                                         help="Also list each component's settings."),
+                                         help="Also list each component's hooks and settings "
+                                              "(type, default, allowed values)."),
             optional: Optional[str] = PluginsOption) -> None:
-    """List every plugin, its version and the components it registers."""
-    from ata.core.registry import (OPTIONAL_PLUGINS, collect_components, get_plugin_manager,
-                                   plugin_version)
+    """List every component by name, the plugin it comes from and its version. Optional
+    plugins (the learned methods) are listed too, marked with the --plugins name that loads
+    them."""
+    from rich import box
+
+    from ata.core.registry import OPTIONAL_PLUGINS, collect_components, get_plugin_manager
     from ata.core.settings import describe
 
     pm = get_plugin_manager(optional=_split(optional))
-    registry = collect_components(pm)
-    table = Table(title="ata plugins")
-    table.add_column("plugin")
-    table.add_column("version")
-    table.add_column("components")
-    table.add_column("hooks")
-    for name, plugin in sorted(pm.list_name_plugin(), key=lambda x: x[0]):
-        comps = [f"{c.kind}:{c.name}" for c in registry.components.values() if c.plugin == name]
-        hooks = ", ".join(sorted(h.name for h in pm.get_hookcallers(plugin) or []))
-        table.add_row(name, plugin_version(pm, plugin), "\n".join(comps) or "-", hooks)
-    console.print(table)
     loaded = {pm.get_name(p) for p in pm.get_plugins()}
+    # every optional plugin, loaded or not, so that a user can discover them here
+    everything = get_plugin_manager(optional=list(OPTIONAL_PLUGINS))
+    registry = collect_components(everything)
+    optional_of = {module: name for name, module in OPTIONAL_PLUGINS.items()}
+    table = Table(title="ata plugins", box=box.SIMPLE_HEAD, title_justify="left")
+    table.add_column("component", no_wrap=True)
+    table.add_column("kind", no_wrap=True)
+    table.add_column("plugin (in ata.plugins)", overflow="fold")
+    table.add_column("version", no_wrap=True)
+    for info in sorted(registry.components.values(), key=lambda c: (c.kind, c.name)):
+        plugin = info.plugin.removeprefix("ata.plugins.")
+        if info.plugin in optional_of:
+            plugin = f"{plugin} (--plugins {optional_of[info.plugin]})"
+        table.add_row(info.name, info.kind, plugin, info.dist)
+    console.print(table)
     missing = [n for n, mod in OPTIONAL_PLUGINS.items() if mod not in loaded]
     if missing:
-        console.print(f"optional plugins not loaded (use --plugins): {', '.join(missing)}")
+        console.print(f"Optional plugins (the learned methods) load with --plugins NAME or a "
+                      f"mission's [mission] plugins; not loaded now: {', '.join(missing)}.",
+                      highlight=False, markup=False)
     if verbose:
+        # one block per component, a key per line: readable at any terminal width
         for info in sorted(registry.components.values(), key=lambda c: (c.kind, c.name)):
             cls = getattr(info.factory, "Settings", None)
-            sub = Table(title=escape(f"[{info.name}] ({info.kind}, from {info.plugin})"),
-                        title_justify="left")
-            sub.add_column("key")
-            sub.add_column("type")
-            sub.add_column("default")
-            sub.add_column("meaning")
-            for key, tp, default, text in (describe(cls) if cls else []):
-                sub.add_row(key, tp, escape(repr(default)), escape(text))
-            console.print(sub)
+            hooks = ", ".join(h for h in sorted(dir(info.factory))
+                              if h.startswith("ata_") and h != "ata_register_components")
+            console.print()
+            console.print(Text(f"[{info.name}]", style="bold") + Text(
+                f" {info.kind}, from {info.plugin}; hooks: {hooks or 'none'}"))
+            rows = describe(cls) if cls else []
+            if not rows:
+                console.print("  no settings", highlight=False)
+            for key, tp, default, allowed, text in rows:
+                kind = f"{tp}, {allowed}" if allowed else tp
+                console.print(Text(f"  {key}", style="cyan") + Text(f" = {default!r}  ({kind})"))
+                console.print(Padding(Text(text), (0, 0, 0, 6)))
 
 
 def _split_or_none(text: Optional[str]) -> Optional[list[str]]:
@@ -282,22 +333,22 @@ def eval_(paths: List[str] = typer.Argument(
               ..., metavar="FILE",
               help="Suite files (a suite table and method tables) or mission files; see "
                    "docs/evaluation.md."),
-          out: Optional[Path] = typer.Option(None, "--out", "-o",
+          out: Optional[Path] = typer.Option(None, "--out", "-o", metavar="DIR",
                                              help="Output folder (default: runs/eval-NAME-TIME)."),
-          executor: str = typer.Option("process", "--executor", "-e",
+          executor: str = typer.Option("process", "--executor", "-e", metavar="NAME",
                                        help="serial, process (local worker processes) or ray."),
-          workers: Optional[int] = typer.Option(None, "--workers", "-w", min=1,
+          workers: Optional[int] = typer.Option(None, "--workers", "-w", min=1, metavar="N",
                                                 help="Worker processes (process: default one "
                                                      "per core) or local Ray CPUs."),
-          address: Optional[str] = typer.Option(None, "--address",
+          address: Optional[str] = typer.Option(None, "--address", metavar="ADDRESS",
                                                 help="Ray cluster address (default: "
                                                      "$RAY_ADDRESS, else a local Ray)."),
-          chunk_size: int = typer.Option(50, "--chunk-size", min=1,
+          chunk_size: int = typer.Option(50, "--chunk-size", min=1, metavar="N",
                                          help="Scenarios per work unit."),
-          scenarios: Optional[int] = typer.Option(None, "--scenarios", "-n", min=1,
+          scenarios: Optional[int] = typer.Option(None, "--scenarios", "-n", min=1, metavar="N",
                                                   help="Scenarios per (method, setting, level) "
                                                        "(default: the suite's, else 500)."),
-          seed: Optional[int] = typer.Option(None, "--seed", min=0,
+          seed: Optional[int] = typer.Option(None, "--seed", min=0, metavar="N",
                                              help="Root seed (default: the suite's, else 0)."),
           methods: Optional[str] = typer.Option(None, "--methods", metavar="NAME[,NAME]",
                                                 help="Run only these methods."),
@@ -305,7 +356,7 @@ def eval_(paths: List[str] = typer.Argument(
                                                  help="Run only these team settings."),
           levels: Optional[str] = typer.Option(None, "--levels", metavar="LEVEL[,LEVEL]",
                                                help="Run only these uncertainty levels."),
-          cache: Optional[Path] = typer.Option(None, "--cache",
+          cache: Optional[Path] = typer.Option(None, "--cache", metavar="DIR",
                                                help="Cache folder for results that depend on "
                                                     "the scenario alone (MILP initial "
                                                     "allocations); default $ATA_CACHE, else "
@@ -315,6 +366,7 @@ def eval_(paths: List[str] = typer.Argument(
     """Evaluate methods on held-out scenarios across team settings and uncertainty levels."""
     from ata.core import evaluate as ev
     from ata.core import report as rep
+    from ata.core import runner
     from ata.core.errors import MissionError
     from ata.core.executors import EXECUTORS, make_executor
 
@@ -326,6 +378,7 @@ def eval_(paths: List[str] = typer.Argument(
                            methods=_split_or_none(methods), settings=_split_or_none(settings),
                            levels=_split_or_none(levels))
     cache_dir = None if no_cache else (cache or ev.default_cache_dir())
+    out_dir = runner.prepare_out_dir(out) if out else ev.default_out_dir(suites)
     total = ev.total_scenarios(jobs)
     columns = [TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
                TextColumn("{task.completed:,.0f}/{task.total:,.0f} scenarios"),
@@ -341,7 +394,7 @@ def eval_(paths: List[str] = typer.Argument(
                  "settings": settings, "levels": levels,
                  "cache": str(cache_dir) if cache_dir else None,
                  "first_scenario": ev.EVAL_FIRST_SCENARIO}
-    out_dir = ev.write_eval(out or ev.default_out_dir(suites), suites, jobs, result, arguments)
+    ev.write_eval(out_dir, suites, jobs, result, arguments)
     report = rep.summarize(rep.read_results(out_dir))
     _render_report(report)
     for warning in result.warnings:
@@ -369,20 +422,80 @@ def _render_report(report) -> None:
 def report(run_dir: List[Path] = typer.Argument(..., metavar="DIR...",
                                                 help="`ata eval` output folders (several are "
                                                      "read together; outputs go to the "
-                                                     "first)."),
+                                                     "first), or one `ata train` run folder "
+                                                     "(its learning curves)."),
            reference: Optional[str] = typer.Option(
-               None, "--reference", "-r",
-               help="The method the others are compared with (default: ATA-HRL if present, "
-                    "else the first method)."),
+               None, "--reference", "-r", metavar="NAME",
+               help="The method the others are compared with in the tables (default: ATA-HRL "
+                    "if present, else the first method)."),
+           paired_reference: Optional[str] = typer.Option(
+               None, "--paired-reference", metavar="NAME",
+               help="The method subtracted in fig_paired, method - NAME (default: greedy if "
+                    "present, else the first method)."),
+           out: Optional[Path] = typer.Option(None, "--out", "-o", metavar="DIR",
+                                              help="Write here (default: the first DIR)."),
            no_figures: bool = typer.Option(False, "--no-figures", help="Write no figures."),
-           resamples: int = typer.Option(2000, "--resamples", min=10,
+           resamples: int = typer.Option(2000, "--resamples", min=10, metavar="N",
                                          help="Bootstrap resamples.")) -> None:
-    """Tables (with bootstrap confidence intervals) and figures of an evaluation."""
+    """Tables (with bootstrap confidence intervals) and figures of an evaluation, or the
+    learning curves of a training run."""
     from ata.core import report as rep
+    from ata.core.errors import MissionError
 
-    result, written = rep.write_report(run_dir, reference, not no_figures, resamples)
-    _render_report(result)
+    if any(rep.is_training_folder(d) for d in run_dir):
+        if len(run_dir) > 1:
+            raise MissionError("", None, "a training run folder is reported alone: "
+                               "ata report RUN_DIR")
+        log, written = rep.write_curves(run_dir[0], out, not no_figures)
+        header, rows = rep.curves_rows(log)
+        table = Table(title=escape(f"training log {log.path}"))
+        for i, name in enumerate(header):
+            table.add_column(escape(name), justify="left" if i == 0 else "right")
+        for row in rows:
+            table.add_row(*[escape(x) for x in row])
+        console.print(table)
+    else:
+        result, written = rep.write_report(run_dir, reference, not no_figures, resamples,
+                                           paired_reference, out)
+        _render_report(result)
     console.print("wrote " + ", ".join(str(p) for p in written), highlight=False)
+
+
+@app.command()
+@user_errors
+def show(target: Optional[str] = typer.Argument(
+             None, metavar="RUN_DIR|MISSION",
+             help="A run folder (read through its mission.resolved.toml) or a mission file. "
+                  "Default: the built-in mission."),
+         scenario: Optional[int] = typer.Option(
+             None, "--scenario", "-n", metavar="N",
+             help="The scenario id to replay (default: the mission's first)."),
+         set_: Optional[List[str]] = SetOption,
+         out: Optional[Path] = typer.Option(
+             None, "--out", "-o", metavar="DIR",
+             help="Folder for the pictures (default: RUN_DIR/show-N, or runs/show-NAME-N).")
+         ) -> None:
+    """Replay one scenario with a recorded trace and draw its map, a timeline per member and
+    the humans' states (show_map, show_timeline, show_humans; PNG and SVG); see docs/show.md."""
+    from ata.viz.show import show as show_scenario
+
+    shown = show_scenario(target, scenario, list(set_ or []), out)
+    ep = shown.episode
+    changing = sum(1 for _, n in ep.reallocations if n)
+    failures = int((ep.fail_time <= ep.horizon_s).sum())
+    console.print(f"{escape(ep.mission)}: scenario {ep.scenario} (seed {ep.seed}): score "
+                  f"{ep.score:.1f} of U {ep.upper_bound:.1f}; {len(ep.reallocations)} "
+                  f"reallocations ({changing} changing POIs), {failures} robot failures",
+                  highlight=False)
+    if shown.run_score is not None:
+        if shown.run_score == ep.score:
+            console.print(f"the same score as the run: {escape(str(shown.results))}",
+                          highlight=False)
+        else:
+            err_console.print(f"[yellow]warning:[/] the replay scored {ep.score!r}, the run "
+                              f"{shown.run_score!r} ({escape(str(shown.results))}): not the "
+                              "code or plugin versions that made the run", highlight=False)
+    console.print("wrote " + ", ".join(escape(str(p)) for p in shown.written), highlight=False)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -52,8 +52,11 @@ def test_run_tiny_mission_writes_the_run_folder(cli, tiny, tmp_path):
     result = cli("run", tiny, "--out", out, "--quiet")
     assert result.exit_code == 0, result.output
     text = flat(result.output)
-    assert "tiny: setting a (6 humans, 8 robots, 60 POIs), medium uncertainty, seed 0" in text
-    assert "greedy / on_event / greedy" in text
+    # no title: the method is named by its components
+    assert "greedy / on_event / greedy: tiny" in text
+    assert "method greedy / on_event / greedy" in text
+    assert "team setting a: 6 humans, 8 robots, 60 POIs" in text
+    assert "scenarios 3 (ids 0..2, root seed 0)" in text
     assert f"results: {out}" in text
     assert sorted(p.name for p in out.iterdir()) == [
         "mission.resolved.toml", "plugins.toml", "results.csv", "summary.json"]
@@ -100,7 +103,7 @@ def test_run_without_a_mission_uses_the_built_in_default(cli, tmp_path):
     out = tmp_path / "run"
     result = cli("run", "--set", "mission.scenarios=2", "--out", out, "-q")
     assert result.exit_code == 0, result.output
-    assert "default: setting a" in flat(result.output)
+    assert "ATA-HRL: default method attention / ctr / ctr + aux team setting a:" in flat(result.output)
     assert len(read_rows(out / "results.csv")) == 2
     resolved = tomllib.loads((out / "mission.resolved.toml").read_text())
     assert resolved["mission"]["name"] == "default"
@@ -114,7 +117,8 @@ def test_set_overrides_mission_and_component_keys(cli, tiny, tmp_path):
                  "-s", "latency.probability=0.5")
     assert result.exit_code == 0, result.output
     assert "seed 7" in flat(result.output)
-    assert "greedy / never / greedy" in flat(result.output)
+    # the reallocation policy never runs under "never": the label leaves it out
+    assert "method greedy / never team" in flat(result.output)
     resolved = tomllib.loads((out / "mission.resolved.toml").read_text())
     assert resolved["mission"]["seed"] == 7
     assert resolved["components"]["condition"] == "never"
@@ -165,19 +169,58 @@ def test_plugins_lists_every_built_in_component(cli):
     registry = collect_components(get_plugin_manager())
     listed = {f"{c.kind}:{c.name}" for c in registry.components.values()}
     assert BUILTIN_COMPONENTS <= listed
+    rows = [ln.split() for ln in result.output.splitlines()]
+    shown = {f"{r[1]}:{r[0]}": r for r in rows if len(r) >= 5}
     for component in listed:
-        assert component in result.output
-    for module in BUILTIN_PLUGINS:
-        line = next(ln for ln in result.output.splitlines() if f" {module} " in ln)
-        assert f"ata {__version__}" in line
+        assert component in shown
+    for info in registry.components.values():
+        row = shown[f"{info.kind}:{info.name}"]
+        assert "ata.plugins." + row[2] == info.plugin
+        assert row[3:5] == ["ata", __version__]
+    assert {info.plugin for info in registry.components.values()} == set(BUILTIN_PLUGINS)
 
 
 def test_plugins_verbose_lists_settings(cli):
     result = cli("plugins", "--verbose")
     assert result.exit_code == 0, result.output
     text = flat(result.output)
-    assert "[latency] (injector, from ata.plugins.uncertainty.latency)" in text
-    assert "groups │ a list of strings │ ['robots', 'tasks']" in text
+    assert "[latency] injector, from ata.plugins.uncertainty.latency; hooks: ata_inject" in text
+    assert ("groups = ['robots', 'tasks'] (a list of strings, one of 'humans', 'robots', "
+            "'tasks') entity groups that lag") in text
+    # ranges and choices are shown
+    assert "probability = None (a number or nothing, 0.0 to 1.0)" in text
+
+
+def test_plugins_lists_the_optional_plugins_unloaded(cli):
+    result = cli("plugins")
+    assert result.exit_code == 0, result.output
+    rows = {ln.split()[0] + " " + ln.split()[1]: ln for ln in result.output.splitlines()
+            if len(ln.split()) > 2}
+    assert "(--plugins ita)" in rows["attention policy"]
+    assert "(--plugins trp)" in rows["tr_pomdp policy"]
+    assert "(--plugins aux)" in rows["aux reconstructor"]
+    assert "(--plugins ctr)" in rows["ctr condition"]
+    assert "not loaded now: ita, ctr, aux, trp" in flat(result.output)
+
+
+@pytest.mark.parametrize("args", [["run", "--help"], ["eval", "--help"], ["report", "--help"],
+                                  ["plugins"], ["run", "--set", "mission.scenarios=2", "-q"]])
+def test_output_fits_80_columns_without_type_tags(tmp_path, monkeypatch, args):
+    from typer.testing import CliRunner
+
+    from ata.cli import app
+    monkeypatch.chdir(tmp_path)
+    result = CliRunner(env={"COLUMNS": "80"}).invoke(app, args)
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    assert max(len(ln) for ln in lines) <= 80
+    for tag in ("<bool>", "<list[", "<str>", "<path>", "<int"):
+        assert tag not in result.output
+    # nothing a user must read or type is cut short
+    assert "…" not in result.output
+    if args[0] == "run" and "--help" not in args:
+        assert "ATA-HRL: default" in result.output
+        assert "method" in result.output and "team performance" in result.output
 
 
 # --- bad input: one message naming the file, the key and what is allowed; exit 2 -----------------
@@ -287,3 +330,56 @@ def test_real_entry_point_prints_one_line_without_traceback(tmp_path):
     assert proc.stdout == ""
     assert "Traceback" not in proc.stderr
     assert flat(proc.stderr) == f"error: {path}: no such file"
+
+
+@pytest.mark.parametrize("key, value", [
+    ("mission.horizon_s", "nan"), ("mission.tick_s", "inf"), ("mission.event_probability", "nan"),
+    ("mission.fatigue_variance", "inf"), ("robot.uav_speed", "nan"), ("poi.area_m", "-inf"),
+    ("greedy.human_time_cost", "nan"),
+])
+def test_non_finite_numbers_are_refused(cli, tiny, key, value):
+    for command in ("check", "run"):
+        result = cli(command, tiny, "--set", f"{key}={value}", *(["-q"] if command == "run" else []))
+        table, name = key.split(".")
+        assert_user_error(result, f"[{table}] key '{name}': {value} is not allowed; a finite "
+                                  "number is needed")
+
+
+def test_a_latency_group_that_does_not_exist_is_refused_by_check(cli, tiny):
+    assert_user_error(cli("check", tiny, "--set", "latency.groups=['bogus']"),
+                      "[latency] key 'groups': 'bogus' is not allowed; choose one of 'humans', "
+                      "'robots', 'tasks'")
+
+
+def test_an_output_folder_under_a_file_is_refused_before_any_work(cli, tiny, tmp_path,
+                                                                   monkeypatch):
+    from ata.core import runner
+    ran = []
+    monkeypatch.setattr(runner, "run_mission", lambda *a, **k: ran.append(1))
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert_user_error(cli("run", tiny, "-q", "--out", blocker / "sub"),
+                      f"--out: cannot write to {blocker / 'sub'}: Not a directory")
+    assert ran == []
+
+
+def test_two_runs_in_the_same_second_get_two_folders(tiny, tmp_path, monkeypatch):
+    from ata.core import runner
+    monkeypatch.setenv("ATA_RUNS", str(tmp_path))
+    monkeypatch.setattr(runner.time, "strftime", lambda fmt: "20260101-000000")
+    mission = runner.load_session(str(tiny)).mission
+    first, second = runner.default_out_dir(mission), runner.default_out_dir(mission)
+    assert first.name == "tiny-20260101-000000"
+    assert second.name == "tiny-20260101-000000-2"
+    assert first.is_dir() and second.is_dir()
+
+
+def test_train_into_the_folder_of_an_old_run_is_refused(cli, tmp_path):
+    from ata.training import TrainRun
+    old = tmp_path / "old"
+    TrainRun(old, "", ["step"])                       # an earlier run's folder
+    (old / "best.pt").write_bytes(b"x")
+    result = cli("train", "--plugins", "ita", "-q", "--out", old)
+    assert_user_error(result, f"--out: {old} holds a training run already (best.pt, log.csv): "
+                              f"resume it with --resume {old}, or choose another folder")
+    assert (old / "best.pt").read_bytes() == b"x"

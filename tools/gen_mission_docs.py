@@ -14,11 +14,11 @@ MARK = "## `[mission]`"
 
 
 def table(cls) -> list[str]:
-    rows = ["| key | type | default | meaning |", "|---|---|---|---|"]
-    for key, tp, default, text in describe(cls):
+    rows = ["| key | type | default | allowed | meaning |", "|---|---|---|---|---|"]
+    for key, tp, default, allowed, text in describe(cls):
         shown = "(from the level)" if default is None and key in ("variance", "probability") \
             else repr(default)
-        rows.append(f"| `{key}` | {tp} | `{shown}` | {text} |")
+        rows.append(f"| `{key}` | {tp} | `{shown}` | {allowed} | {text} |")
     return rows
 
 

@@ -34,7 +34,9 @@ UNCERTAINTY_LEVELS = {"none": (0.0, 0.0), "low": (0.05, 0.1), "medium": (0.1, 0.
 class MissionSettings:
     """The ``[mission]`` table."""
 
-    name: str = param("mission", help="a label for the run")
+    name: str = param("mission", help="a short label for the run (its folder's name)")
+    title: str = param("", help="the method's display name in summaries (default: its "
+                       "components)")
     setting: str = param("a", choices=("a", "b", "custom"),
                          help="team setting: a (6/8/60), b (12/16/130) or custom")
     humans: int | None = param(None, min=1, max=1000, help="number of humans (overrides setting)")
@@ -97,6 +99,20 @@ class Mission:
     def sizes(self) -> TeamSize:
         s = self.settings
         return TeamSize(humans=s.humans, robots=s.robots, tasks=s.tasks)
+
+    def method_label(self) -> str:
+        """The method as its components: initial / condition / reallocation, then the
+        reconstructors other than identity (the reallocation is left out when the condition is
+        ``never``: it never runs)."""
+        s = self.slots
+        parts = [s.initial, s.condition] + ([] if s.condition == "never" else [s.reallocation])
+        label = " / ".join(parts)
+        recon = [r for r in s.reconstructors if r != "identity"]
+        return label + (f" + {', '.join(recon)}" if recon else "")
+
+    def display_name(self) -> str:
+        """The mission's ``title``, else its method label."""
+        return self.settings.title or self.method_label()
 
     @property
     def clock(self) -> Clock:
