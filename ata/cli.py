@@ -362,13 +362,22 @@ def eval_(paths: List[str] = typer.Argument(
                                                     "allocations); default $ATA_CACHE, else "
                                                     "~/.cache/ata."),
           no_cache: bool = typer.Option(False, "--no-cache", help="Use no cache."),
+          force: bool = typer.Option(False, "--force",
+                                     help="Start over in an --out folder that holds the "
+                                          "results of another plan."),
           quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar.")) -> None:
-    """Evaluate methods on held-out scenarios across team settings and uncertainty levels."""
+    """Evaluate methods on held-out scenarios across team settings and uncertainty levels.
+
+    Each finished work unit is saved in the output folder as it ends: rerun the same command
+    with the same --out to go on after an interruption (only what is missing runs)."""
+    import numpy as np
+
     from ata.core import evaluate as ev
     from ata.core import report as rep
     from ata.core import runner
     from ata.core.errors import MissionError
     from ata.core.executors import EXECUTORS, make_executor
+    from ata.core.runlog import RunLog
 
     if executor not in EXECUTORS:
         raise MissionError("--executor", None, f"unknown executor {executor!r}; choose one of "
@@ -383,17 +392,37 @@ def eval_(paths: List[str] = typer.Argument(
     columns = [TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
                TextColumn("{task.completed:,.0f}/{task.total:,.0f} scenarios"),
                TimeElapsedColumn(), TimeRemainingColumn()]
-    with make_executor(executor, workers, address) as pool:
-        with Progress(*columns, console=Console(stderr=True), disable=quiet) as progress:
-            task = progress.add_task(f"eval: {len(jobs)} (method, setting, level)", total=total)
-            result = ev.evaluate(jobs, pool, chunk_size=chunk_size, cache=cache_dir,
-                                 progress=lambda n: progress.advance(task, n))
-        described = pool.describe()
+    log = RunLog(out_dir, ev.plan_key(jobs, chunk_size), ev.unit_count(jobs, chunk_size),
+                 force=force, describe={"paths": list(paths), "jobs": len(jobs),
+                                        "chunk_size": chunk_size})
+    if log.resumed == log.units:
+        err_console.print(f"resuming {escape(str(out_dir))}: all {log.units} work units were "
+                          "done before", highlight=False)
+    elif log.resumed:
+        err_console.print(f"resuming {escape(str(out_dir))}: {log.resumed} of {log.units} work "
+                          f"units were done before; running the other "
+                          f"{log.units - log.resumed}", highlight=False)
+    done_before = sum(int(np.asarray(p["scenario"]).size) for p in log.done.values())
+    try:
+        with make_executor(executor, workers, address) as pool:
+            with Progress(*columns, console=Console(stderr=True), disable=quiet) as progress:
+                task = progress.add_task(f"eval: {len(jobs)} (method, setting, level)",
+                                         total=total, completed=done_before)
+                result = ev.evaluate(jobs, pool, chunk_size=chunk_size, cache=cache_dir,
+                                     progress=lambda n: progress.advance(task, n), log=log)
+            described = pool.describe()
+    except KeyboardInterrupt:
+        err_console.print(f"interrupted: {len(log.done)} of {log.units} work units are saved in "
+                          f"{escape(str(out_dir))}; run the same command with --out "
+                          f"{escape(str(out_dir))} to go on", highlight=False)
+        raise typer.Exit(130) from None
+    finally:
+        log.close()
     arguments = {"paths": list(paths), "executor": described, "chunk_size": chunk_size,
                  "scenarios": scenarios, "seed": seed, "methods": methods,
                  "settings": settings, "levels": levels,
                  "cache": str(cache_dir) if cache_dir else None,
-                 "first_scenario": ev.EVAL_FIRST_SCENARIO}
+                 "first_scenario": ev.EVAL_FIRST_SCENARIO, "resumed_units": log.resumed}
     ev.write_eval(out_dir, suites, jobs, result, arguments)
     report = rep.summarize(rep.read_results(out_dir))
     _render_report(report)

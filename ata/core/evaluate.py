@@ -33,6 +33,7 @@ import tomli_w
 
 from ata import __version__
 from ata.core import mission as mission_mod
+from ata.core import runlog
 from ata.core.cache import run_cache
 from ata.core.errors import MissionError
 from ata.core.executors import Executor
@@ -424,15 +425,40 @@ class EvalResult:
     warnings: list[str]
 
 
+def plan_key(jobs: list[Job], chunk_size: int) -> str:
+    """The key of a plan: everything that decides its rows (each job's resolved mission and
+    component versions, the chunking); not where or how fast it runs."""
+    return runlog.plan_key({"ata": __version__, "chunk_size": chunk_size,
+                            "jobs": [[j.method, j.setting, j.level, j.mission.to_toml(),
+                                      j.session.versions()] for j in jobs]})
+
+
+def unit_count(jobs: list[Job], chunk_size: int) -> int:
+    return sum(-(-j.mission.settings.scenarios // chunk_size) for j in jobs)
+
+
 def evaluate(jobs: list[Job], executor: Executor, *, chunk_size: int = DEFAULT_CHUNK,
              cache: str | Path | None = None,
-             progress: Callable[[int], None] | None = None) -> EvalResult:
-    """Run every job's scenarios on `executor`; `progress(n)` hears of n more scenarios done."""
+             progress: Callable[[int], None] | None = None,
+             log: runlog.RunLog | None = None) -> EvalResult:
+    """Run every job's scenarios on `executor`; `progress(n)` hears of n more scenarios done.
+
+    :param log: the output folder's record: units it holds are not run again, and each unit
+        is recorded there durably as it finishes.
+    """
     units = make_units(jobs, chunk_size, cache, executor.parallel)
     parts: list[dict[str, Any] | None] = [None] * len(units)
+    todo = list(range(len(units)))
+    if log is not None:
+        for i, part in log.done.items():
+            parts[i] = part
+        todo = log.missing()
     t0 = time.perf_counter()
-    for i, out in executor.run(run_unit, units):
+    for k, out in executor.run(run_unit, [units[i] for i in todo]):
+        i = todo[k]
         parts[i] = out
+        if log is not None:
+            log.add(i, out)
         if progress is not None:
             progress(int(np.asarray(out["scenario"]).size))
     wall = time.perf_counter() - t0
@@ -483,10 +509,14 @@ def write_eval(out_dir: str | Path, suites: list[Suite], jobs: list[Job], result
     """results.csv, missions/*.resolved.toml, plugins.toml and eval.json."""
     out = Path(out_dir)
     (out / "missions").mkdir(parents=True, exist_ok=True)
-    with open(out / "results.csv", "w", newline="", encoding="utf-8") as f:
+    for stale in (out / "missions").glob("*.resolved.toml"):   # of an earlier plan
+        stale.unlink()
+    tmp = out / "results.csv.tmp"
+    with open(tmp, "w", newline="", encoding="utf-8") as f:
         writer = csv.DictWriter(f, fieldnames=result.columns)
         writer.writeheader()
         writer.writerows(result.rows)
+    os.replace(tmp, out / "results.csv")
     for job in jobs:
         name = f"{safe_name(job.method)}__{job.setting}__{job.level}.resolved.toml"
         (out / "missions" / name).write_text(job.mission.to_toml(), encoding="utf-8")

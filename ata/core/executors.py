@@ -72,7 +72,9 @@ class ProcessExecutor(Executor):
             return
         workers = min(self.workers, len(units))
         context = multiprocessing.get_context("spawn")
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=context)
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
+                                   initializer=_die_with_parent, initargs=(os.getpid(),))
+        finished = False
         try:
             pending = {pool.submit(fn, unit): i for i, unit in enumerate(units)}
             while pending:
@@ -80,8 +82,33 @@ class ProcessExecutor(Executor):
                 for future in done:
                     i = pending.pop(future)
                     yield i, future.result()
+            finished = True
         finally:
-            pool.shutdown(wait=True, cancel_futures=True)
+            if not finished:
+                # interrupted (Ctrl-C, an error, the caller stopped): stop the units under way
+                # now instead of waiting for them to finish
+                for process in list(getattr(pool, "_processes", {}).values()):
+                    process.terminate()
+            pool.shutdown(wait=finished, cancel_futures=True)
+
+
+def _die_with_parent(parent: int) -> None:
+    """In a worker: leave Ctrl-C to the parent (which stops the pool), and ask the kernel to end
+    this process when its parent dies (Linux), so that a killed `ata eval` leaves no worker
+    behind."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        PR_SET_PDEATHSIG = 1
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+        if os.getppid() != parent:    # the parent died before the request took effect
+            os._exit(1)
+    except (OSError, AttributeError):  # not Linux: the pool's own shutdown has to do
+        pass
 
 
 class RayExecutor(Executor):

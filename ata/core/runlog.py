@@ -1,0 +1,136 @@
+"""The durable record of a chunked run, so that a killed run loses nothing and a rerun does only
+what is missing.
+
+An output folder holds ``plan.json`` (what is planned: a key of everything that decides the
+results, and the number of work units) and ``units.jsonl`` (one line per finished unit, its
+results, appended, flushed and fsynced as the unit finishes). A rerun into the folder with the
+same plan reads the finished units back and runs only the others; since a unit's numbers depend
+on its scenarios alone, the final rows are those of an uninterrupted run. A folder of another
+plan is refused unless the caller forces a fresh start.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ata.core.errors import MissionError
+
+PLAN = "plan.json"
+UNITS = "units.jsonl"
+
+
+def plan_key(parts: Any) -> str:
+    """A stable digest of a plan's description (JSON-serialisable)."""
+    text = json.dumps(parts, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+
+def _encode(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return {"__array__": value.tolist(), "dtype": str(value.dtype)}
+    if isinstance(value, (np.integer, np.floating)):
+        return value.item()
+    if isinstance(value, dict):
+        return {k: _encode(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_encode(v) for v in value]
+    return value
+
+
+def _decode(value: Any) -> Any:
+    if isinstance(value, dict):
+        if "__array__" in value:
+            return np.asarray(value["__array__"], dtype=value["dtype"])
+        return {k: _decode(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_decode(v) for v in value]
+    return value
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "w", encoding="utf-8") as f:
+        f.write(text)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+class RunLog:
+    """Opens (or resumes) the record of a plan in `out_dir`.
+
+    :param key: the plan's key (`plan_key`); a folder recorded under another key is refused.
+    :param units: the number of work units of the plan.
+    :param force: start afresh in a folder of another plan (its record is dropped).
+    :param describe: what the plan is, written to plan.json for people.
+    """
+
+    def __init__(self, out_dir: str | Path, key: str, units: int, *, force: bool = False,
+                 describe: dict[str, Any] | None = None):
+        self.dir = Path(out_dir)
+        self.key = key
+        self.units = units
+        self.done: dict[int, dict[str, Any]] = {}
+        plan, log = self.dir / PLAN, self.dir / UNITS
+        same = False
+        if plan.exists():
+            try:
+                same = json.loads(plan.read_text(encoding="utf-8")).get("key") == key
+            except (json.JSONDecodeError, AttributeError):
+                same = False
+        if not same and not force and (plan.exists() or (self.dir / "results.csv").exists()):
+            raise MissionError("--out", None, f"{self.dir} holds the results of another plan; "
+                               "choose another folder, or --force to start it over there")
+        if same:
+            self.done = self._read(log)
+        else:
+            for stale in (log, self.dir / "results.csv"):
+                stale.unlink(missing_ok=True)
+            _write_atomic(plan, json.dumps({"key": key, "units": units, **(describe or {})},
+                                           indent=2, default=str) + "\n")
+        self.resumed = len(self.done)
+        self._file = open(log, "a", encoding="utf-8")
+
+    def _read(self, log: Path) -> dict[int, dict[str, Any]]:
+        """The finished units; a line cut short by a kill is dropped (and cut off the file)."""
+        if not log.exists():
+            return {}
+        done: dict[int, dict[str, Any]] = {}
+        good = 0
+        with open(log, "rb") as f:
+            data = f.read()
+        for line in data.splitlines(keepends=True):
+            if not line.endswith(b"\n"):
+                break
+            try:
+                entry = json.loads(line)
+                index = int(entry["unit"])
+                part = _decode(entry["part"])
+            except (ValueError, KeyError, TypeError):
+                break
+            if 0 <= index < self.units:
+                done[index] = part
+            good += len(line)
+        if good < len(data):
+            with open(log, "r+b") as f:
+                f.truncate(good)
+        return done
+
+    def add(self, index: int, part: dict[str, Any]) -> None:
+        """Record a finished unit durably (flushed and fsynced before this returns)."""
+        self._file.write(json.dumps({"unit": index, "part": _encode(part)}) + "\n")
+        self._file.flush()
+        os.fsync(self._file.fileno())
+        self.done[index] = part
+
+    def missing(self) -> list[int]:
+        return [i for i in range(self.units) if i not in self.done]
+
+    def close(self) -> None:
+        self._file.close()
