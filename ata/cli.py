@@ -120,22 +120,48 @@ def run(mission: Optional[str] = typer.Argument(
                                            help="Run folder (default: runs/NAME-TIME)."),
         workers: Optional[int] = typer.Option(None, "--workers", "-w", min=1, metavar="N",
                                               help="Worker processes (default: the mission's)."),
+        force: bool = typer.Option(False, "--force",
+                                   help="Start over in an --out folder that holds the results "
+                                        "of another run."),
         quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar.")) -> None:
-    """Run a mission and print its summary; write results beside the resolved mission."""
+    """Run a mission and print its summary; write results beside the resolved mission.
+
+    Each finished batch is saved in the run folder as it ends: rerun the same command with the
+    same --out to go on after an interruption (only what is missing runs)."""
     from ata.core import runner
+    from ata.core.runlog import RunLog
+
+    from ata.core.kernel import Simulation
 
     session = runner.load_session(mission, set_ or [], _split(plugins))
     m = session.mission
-    # the output folder is made and checked before any scenario runs
+    # the components are built (checkpoints read) and the output folder is made and checked
+    # before any scenario runs
+    Simulation(m.replace(scenarios=1), session.registry, [m.settings.first_scenario])
     out_dir = runner.prepare_out_dir(out) if out else runner.default_out_dir(m)
+    chunks = runner.chunks_of(m, workers or m.settings.workers)
+    log = RunLog(out_dir, runner.plan_key(session, chunks), len(chunks), force=force,
+                 describe={"mission": m.settings.name, "scenarios": m.settings.scenarios})
+    if log.resumed:
+        err_console.print(f"resuming {escape(str(out_dir))}: {log.resumed} of {log.units} "
+                          "batches were done before", highlight=False, soft_wrap=True)
     total = m.settings.scenarios * m.clock.n_epochs
+    done = sum(int(p["scenario"].size) for p in log.done.values()) * m.clock.n_epochs
     columns = [TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
                SpeedColumn(), TimeElapsedColumn(), TimeRemainingColumn()]
-    with Progress(*columns, console=Console(stderr=True), disable=quiet) as progress:
-        task = progress.add_task(f"{m.settings.name}: {m.settings.scenarios} scenarios",
-                                 total=total)
-        result = runner.run_mission(session, progress=lambda n: progress.advance(task, n),
-                                    workers=workers)
+    try:
+        with Progress(*columns, console=Console(stderr=True), disable=quiet) as progress:
+            task = progress.add_task(f"{m.settings.name}: {m.settings.scenarios} scenarios",
+                                     total=total, completed=done)
+            result = runner.run_mission(session, progress=lambda n: progress.advance(task, n),
+                                        workers=workers, log=log, chunks=chunks)
+    except KeyboardInterrupt:
+        err_console.print(f"interrupted: {len(log.done)} of {log.units} batches are saved in "
+                          f"{escape(str(out_dir))}; run the same command with --out "
+                          f"{escape(str(out_dir))} to go on", highlight=False, soft_wrap=True)
+        raise typer.Exit(130) from None
+    finally:
+        log.close()
     runner.write_run(out_dir, session, result)
     render_summary(session, result)
     console.print(f"results: {out_dir}")
@@ -397,11 +423,11 @@ def eval_(paths: List[str] = typer.Argument(
                                         "chunk_size": chunk_size})
     if log.resumed == log.units:
         err_console.print(f"resuming {escape(str(out_dir))}: all {log.units} work units were "
-                          "done before", highlight=False)
+                          "done before", highlight=False, soft_wrap=True)
     elif log.resumed:
         err_console.print(f"resuming {escape(str(out_dir))}: {log.resumed} of {log.units} work "
                           f"units were done before; running the other "
-                          f"{log.units - log.resumed}", highlight=False)
+                          f"{log.units - log.resumed}", highlight=False, soft_wrap=True)
     done_before = sum(int(np.asarray(p["scenario"]).size) for p in log.done.values())
     try:
         with make_executor(executor, workers, address) as pool:
@@ -414,7 +440,7 @@ def eval_(paths: List[str] = typer.Argument(
     except KeyboardInterrupt:
         err_console.print(f"interrupted: {len(log.done)} of {log.units} work units are saved in "
                           f"{escape(str(out_dir))}; run the same command with --out "
-                          f"{escape(str(out_dir))} to go on", highlight=False)
+                          f"{escape(str(out_dir))} to go on", highlight=False, soft_wrap=True)
         raise typer.Exit(130) from None
     finally:
         log.close()

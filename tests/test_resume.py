@@ -148,3 +148,40 @@ def test_ctrl_c_stops_at_once_saying_what_was_saved(suite, tmp_path):
     assert " ".join(proc.stderr.read().split()) == (
         f"interrupted: {saved} of 24 work units are saved in {out}; run the same command with "
         f"--out {out} to go on")
+
+
+def ata_run(out: Path, *extra: str) -> subprocess.Popen:
+    from ata.core.runner import BASELINE_MISSION   # greedy, on-event reallocation
+    return subprocess.Popen([sys.executable, "-c", "from ata.cli import app; app()", "run",
+                             str(BASELINE_MISSION), "--set", "mission.scenarios=24",
+                             "--set", "mission.batch_size=3", "-o", str(out), "-q", *extra],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def test_a_killed_run_resumes_with_the_results_of_an_uninterrupted_run(tmp_path):
+    whole = tmp_path / "whole"
+    proc = ata_run(whole)
+    assert proc.wait(timeout=300) == 0, proc.stderr.read()
+    out = tmp_path / "killed"
+    proc = ata_run(out)
+    deadline = time.time() + 120
+    while lines(out / "units.jsonl") < 2:
+        assert proc.poll() is None and time.time() < deadline, "the run ended before the kill"
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    saved = lines(out / "units.jsonl")
+    assert 2 <= saved < 8 and not (out / "results.csv").exists()
+    again = ata_run(out)
+    assert again.wait(timeout=300) == 0, again.stderr.read()
+    assert f"resuming {out}: {saved} of 8 batches were done before" in \
+        " ".join(again.stderr.read().split())
+    assert (out / "results.csv").read_text() == (whole / "results.csv").read_text()
+
+
+def test_workers_are_honoured_even_for_one_batch():
+    from ata.core.runner import BASELINE_MISSION, chunks_of, load_session
+    mission = load_session(str(BASELINE_MISSION), ["mission.scenarios=10"]).mission
+    assert [c.size for c in chunks_of(mission, 1)] == [10]          # batch_size 500
+    assert [c.size for c in chunks_of(mission, 2)] == [5, 5]
+    assert [c.size for c in chunks_of(mission, 3)] == [4, 4, 2]

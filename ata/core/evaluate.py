@@ -15,18 +15,14 @@ hook, from its checkpoint), and `check_held_out` refuses a job whose scenarios m
 
 from __future__ import annotations
 
-import contextlib
-import copy
 import csv
-import dataclasses
 import json
 import os
 import re
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Callable
 
 import numpy as np
 import tomli_w
@@ -40,7 +36,8 @@ from ata.core.executors import Executor
 from ata.core.kernel import Simulation
 from ata.core.mission import UNCERTAINTY_LEVELS, Mission
 from ata.core.registry import collect_components, get_plugin_manager
-from ata.core.runner import Session, load_session, new_folder, run_batch
+from ata.core.runner import (Session, load_session, new_folder, one_worker, run_batch,
+                             torch_one_thread)
 
 EVAL_FIRST_SCENARIO = 2 ** 40
 """The first scenario id of every evaluation: far above any id training uses."""
@@ -375,41 +372,14 @@ def make_units(jobs: list[Job], chunk_size: int, cache: str | Path | None = None
     return units
 
 
-def _one_worker(mission: Mission) -> Mission:
-    """A copy whose components run no process pools of their own (the executor already uses
-    every core): each component setting called `workers` is set to 1. Results are unchanged."""
-    out = None
-    for name, st in mission.component_settings.items():
-        if st is not None and getattr(st, "workers", 1) > 1:
-            out = out or copy.deepcopy(mission)
-            out.component_settings[name] = dataclasses.replace(st, workers=1)
-    return out or mission
-
-
-@contextlib.contextmanager
-def _torch_one_thread() -> Iterator[None]:
-    """One torch thread while a unit runs (when torch is loaded), on every executor alike, so
-    that no reduction order depends on where a unit ran."""
-    torch = sys.modules.get("torch")
-    if torch is None:
-        yield
-        return
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(previous)
-
-
 def run_unit(unit: Unit) -> dict[str, Any]:
     """Run one unit in a fresh plugin manager (as a worker process must); the result carries
     the unit's wall time."""
     t0 = time.perf_counter()
-    mission = _one_worker(unit.mission) if unit.parallel else unit.mission
+    mission = one_worker(unit.mission) if unit.parallel else unit.mission
     pm = get_plugin_manager(optional=mission.settings.plugins)
     registry = collect_components(pm)
-    with _torch_one_thread(), run_cache(unit.cache):
+    with torch_one_thread(), run_cache(unit.cache):
         out = run_batch(mission, registry, unit.ids)
     out["wall_s"] = time.perf_counter() - t0
     return out

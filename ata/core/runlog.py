@@ -5,8 +5,9 @@ An output folder holds ``plan.json`` (what is planned: a key of everything that 
 results, and the number of work units) and ``units.jsonl`` (one line per finished unit, its
 results, appended, flushed and fsynced as the unit finishes). A rerun into the folder with the
 same plan reads the finished units back and runs only the others; since a unit's numbers depend
-on its scenarios alone, the final rows are those of an uninterrupted run. A folder of another
-plan is refused unless the caller forces a fresh start.
+on its scenarios alone, the final rows are those of an uninterrupted run. A folder holding
+results of another plan is refused unless the caller forces a fresh start (a plan that finished
+nothing holds none).
 """
 
 from __future__ import annotations
@@ -84,7 +85,8 @@ class RunLog:
                 same = json.loads(plan.read_text(encoding="utf-8")).get("key") == key
             except (json.JSONDecodeError, AttributeError):
                 same = False
-        if not same and not force and (plan.exists() or (self.dir / "results.csv").exists()):
+        holds = (self.dir / "results.csv").exists() or (log.exists() and log.stat().st_size > 0)
+        if not same and not force and holds:
             raise MissionError("--out", None, f"{self.dir} holds the results of another plan; "
                                "choose another folder, or --force to start it over there")
         if same:

@@ -3,21 +3,25 @@ results, summary statistics, and the run folder that makes every number reproduc
 
 from __future__ import annotations
 
+import contextlib
+import copy
 import csv
+import dataclasses
 import json
 import math
 import os
+import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 import numpy as np
 import tomli_w
 
 from ata import __version__
 from ata.core import mission as mission_mod
+from ata.core import runlog
 from ata.core.errors import MissionError
 from ata.core.kernel import Simulation
 from ata.core.mission import Mission
@@ -151,10 +155,41 @@ def run_batch(mission: Mission, registry: Register, scenario_ids: np.ndarray,
     return out
 
 
+def one_worker(mission: Mission) -> Mission:
+    """A copy whose components run no process pools of their own (the executor already uses
+    every core): each component setting called `workers` is set to 1. Results are unchanged."""
+    out = None
+    for name, st in mission.component_settings.items():
+        if st is not None and getattr(st, "workers", 1) > 1:
+            out = out or copy.deepcopy(mission)
+            out.component_settings[name] = dataclasses.replace(st, workers=1)
+    return out or mission
+
+
+@contextlib.contextmanager
+def torch_one_thread() -> Iterator[None]:
+    """One torch thread while a unit runs (when torch is loaded), on every executor alike, so
+    that no reduction order depends on where a unit ran."""
+    torch = sys.modules.get("torch")
+    if torch is None:
+        yield
+        return
+    previous = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
+
+
 def _worker(args: tuple) -> dict[str, np.ndarray]:
+    """One chunk of `ata run` in a worker process: a fresh plugin manager, no process pool of
+    a component's own, one torch thread (the pool already uses every core)."""
     mission, ids = args
+    mission = one_worker(mission)
     pm = get_plugin_manager(optional=mission.settings.plugins)
-    return run_batch(mission, collect_components(pm), ids)
+    with torch_one_thread():
+        return run_batch(mission, collect_components(pm), ids)
 
 
 def scenario_ids(mission: Mission) -> np.ndarray:
@@ -162,37 +197,69 @@ def scenario_ids(mission: Mission) -> np.ndarray:
     return s.first_scenario + np.arange(s.scenarios, dtype=np.int64)
 
 
+def chunks_of(mission: Mission, workers: int) -> list[np.ndarray]:
+    """The scenario ids in batches of at most batch_size; with several workers, small enough
+    that each worker gets one (a scenario's results do not depend on its batch)."""
+    ids = scenario_ids(mission)
+    size = mission.settings.batch_size
+    if workers > 1:
+        size = max(1, min(size, -(-ids.size // workers)))
+    return [ids[i:i + size] for i in range(0, ids.size, size)]
+
+
+def plan_key(session: Session, chunks: list[np.ndarray]) -> str:
+    """What decides a run's rows: the resolved mission, the components' versions, the chunks."""
+    return runlog.plan_key({"ata": __version__, "mission": session.mission.to_toml(),
+                            "versions": session.versions(),
+                            "chunks": [[int(c[0]), int(c.size)] for c in chunks]})
+
+
 def run_mission(session: Session, progress: Callable[[int], None] | None = None,
-                workers: int | None = None) -> RunResult:
+                workers: int | None = None, log: runlog.RunLog | None = None,
+                chunks: list[np.ndarray] | None = None) -> RunResult:
     """Run every scenario of the mission; `progress(n)` is told of n more scenario-epochs done.
 
     Results depend on (seed, scenario index) alone: any batch size or worker count gives the
-    same per-scenario numbers.
+    same per-scenario numbers. With several workers the chunks run on the process executor of
+    `ata eval`. With `log` (`ata run`'s output folder), chunks it holds are not run again and
+    each chunk is recorded there as it finishes.
     """
+    from ata.core.executors import ProcessExecutor
+
     mission = session.mission
-    ids = scenario_ids(mission)
-    bs = mission.settings.batch_size
-    chunks = [ids[i:i + bs] for i in range(0, ids.size, bs)]
     workers = workers or mission.settings.workers
-    t0 = time.perf_counter()
-    parts: list[dict[str, np.ndarray]] = []
+    chunks = chunks if chunks is not None else chunks_of(mission, workers)
     n_epochs = mission.clock.n_epochs
-    if workers <= 1 or len(chunks) == 1:
-        for chunk in chunks:
-            tick = (lambda k, size=chunk.size: progress(size)) if progress else None
-            parts.append(run_batch(mission, session.registry, chunk, on_epoch=tick))
+    parts: list[dict[str, Any] | None] = [None] * len(chunks)
+    todo = list(range(len(chunks)))
+    if log is not None:
+        for i, part in log.done.items():
+            parts[i] = part
+        todo = log.missing()
+    t0 = time.perf_counter()
+
+    def finished(i: int, part: dict[str, Any]) -> None:
+        parts[i] = part
+        if log is not None:
+            log.add(i, part)
+
+    if workers <= 1:
+        for i in todo:
+            tick = (lambda k, size=chunks[i].size: progress(size)) if progress else None
+            finished(i, run_batch(mission, session.registry, chunks[i], on_epoch=tick))
     else:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            for part in pool.map(_worker, [(mission, c) for c in chunks]):
-                parts.append(part)
+        with ProcessExecutor(workers) as pool:
+            for k, part in pool.run(_worker, [(mission, chunks[i]) for i in todo]):
+                finished(todo[k], part)
                 if progress is not None:
                     progress(part["scenario"].size * n_epochs)
     wall = time.perf_counter() - t0
-    merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0] if k != "warnings"}
+    done = [p for p in parts if p is not None]
+    merged = {k: np.concatenate([p[k] for p in done]) for k in done[0] if k != "warnings"}
     return RunResult(scenario=merged["scenario"], total=merged["total"],
                      upper_bound=merged["upper_bound"], reallocations=merged["reallocations"],
                      metrics={k[2:]: v for k, v in merged.items() if k.startswith("m:")},
-                     wall_s=wall, warnings=[w for p in parts for w in p["warnings"]])
+                     wall_s=wall, warnings=[w for p in done for w in p["warnings"]])
 
 
 def mean_ci(values: np.ndarray, z: float = 1.959964) -> tuple[float, float]:
@@ -223,10 +290,12 @@ def write_run(out_dir: str | Path, session: Session, result: RunResult) -> Path:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rows = result.rows()
-    with open(out / "results.csv", "w", newline="", encoding="utf-8") as f:
+    tmp = out / "results.csv.tmp"
+    with open(tmp, "w", newline="", encoding="utf-8") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
+    os.replace(tmp, out / "results.csv")
     (out / "summary.json").write_text(json.dumps(summarize(result), indent=2) + "\n")
     (out / "mission.resolved.toml").write_text(session.mission.to_toml(), encoding="utf-8")
     versions = {"ata": __version__, "components": session.versions()}
