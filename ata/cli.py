@@ -93,6 +93,26 @@ def user_errors(func: Callable) -> Callable:
     return wrapper
 
 
+def _say_resuming(log, out_dir: Path, what: str) -> None:
+    """One line when an output folder's record already holds finished work."""
+    if log.resumed == log.units:
+        text = f"resuming {out_dir}: all {log.units} {what} were done before"
+    elif log.resumed:
+        text = (f"resuming {out_dir}: {log.resumed} of {log.units} {what} were done before; "
+                f"running the other {log.units - log.resumed}")
+    else:
+        return
+    err_console.print(escape(text), highlight=False, soft_wrap=True)
+
+
+def _interrupted(log, out_dir: Path, what: str) -> typer.Exit:
+    """Say what an interrupted run saved and how to go on; the exit to raise (130)."""
+    err_console.print(escape(f"interrupted: {len(log.done)} of {log.units} {what} are saved in "
+                             f"{out_dir}; run the same command with --out {out_dir} to go on"),
+                      highlight=False, soft_wrap=True)
+    return typer.Exit(130)
+
+
 def _split(plugins: Optional[str]) -> list[str]:
     return [p.strip() for p in (plugins or "").split(",") if p.strip()]
 
@@ -142,9 +162,7 @@ def run(mission: Optional[str] = typer.Argument(
     chunks = runner.chunks_of(m, workers or m.settings.workers)
     log = RunLog(out_dir, runner.plan_key(session, chunks), len(chunks), force=force,
                  describe={"mission": m.settings.name, "scenarios": m.settings.scenarios})
-    if log.resumed:
-        err_console.print(f"resuming {escape(str(out_dir))}: {log.resumed} of {log.units} "
-                          "batches were done before", highlight=False, soft_wrap=True)
+    _say_resuming(log, out_dir, "batches")
     total = m.settings.scenarios * m.clock.n_epochs
     done = sum(int(p["scenario"].size) for p in log.done.values()) * m.clock.n_epochs
     columns = [TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
@@ -156,10 +174,7 @@ def run(mission: Optional[str] = typer.Argument(
             result = runner.run_mission(session, progress=lambda n: progress.advance(task, n),
                                         workers=workers, log=log, chunks=chunks)
     except KeyboardInterrupt:
-        err_console.print(f"interrupted: {len(log.done)} of {log.units} batches are saved in "
-                          f"{escape(str(out_dir))}; run the same command with --out "
-                          f"{escape(str(out_dir))} to go on", highlight=False, soft_wrap=True)
-        raise typer.Exit(130) from None
+        raise _interrupted(log, out_dir, "batches") from None
     finally:
         log.close()
     runner.write_run(out_dir, session, result)
@@ -421,13 +436,7 @@ def eval_(paths: List[str] = typer.Argument(
     log = RunLog(out_dir, ev.plan_key(jobs, chunk_size), ev.unit_count(jobs, chunk_size),
                  force=force, describe={"paths": list(paths), "jobs": len(jobs),
                                         "chunk_size": chunk_size})
-    if log.resumed == log.units:
-        err_console.print(f"resuming {escape(str(out_dir))}: all {log.units} work units were "
-                          "done before", highlight=False, soft_wrap=True)
-    elif log.resumed:
-        err_console.print(f"resuming {escape(str(out_dir))}: {log.resumed} of {log.units} work "
-                          f"units were done before; running the other "
-                          f"{log.units - log.resumed}", highlight=False, soft_wrap=True)
+    _say_resuming(log, out_dir, "work units")
     done_before = sum(int(np.asarray(p["scenario"]).size) for p in log.done.values())
     try:
         with make_executor(executor, workers, address) as pool:
@@ -438,10 +447,7 @@ def eval_(paths: List[str] = typer.Argument(
                                      progress=lambda n: progress.advance(task, n), log=log)
             described = pool.describe()
     except KeyboardInterrupt:
-        err_console.print(f"interrupted: {len(log.done)} of {log.units} work units are saved in "
-                          f"{escape(str(out_dir))}; run the same command with --out "
-                          f"{escape(str(out_dir))} to go on", highlight=False, soft_wrap=True)
-        raise typer.Exit(130) from None
+        raise _interrupted(log, out_dir, "work units") from None
     finally:
         log.close()
     arguments = {"paths": list(paths), "executor": described, "chunk_size": chunk_size,

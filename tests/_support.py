@@ -31,6 +31,20 @@ def flat(text: str) -> str:
     return " ".join(text.split())
 
 
+def assert_user_error(result, *fragments: str) -> None:
+    """A CLI result: exit 2, no traceback, exactly one message, holding every fragment."""
+    assert result.exit_code == 2, result.output
+    # typer.Exit(2), not an uncaught exception (CliRunner would report one as exit code 1)
+    assert result.exception is None or isinstance(result.exception, SystemExit)
+    assert "Traceback" not in result.output
+    lines = result.output.splitlines()
+    assert lines[0].startswith("error: ")
+    assert sum(line.startswith("error:") for line in lines) == 1, result.output
+    text = flat(result.output)
+    for fragment in fragments:
+        assert fragment in text, f"{fragment!r} not in {text!r}"
+
+
 def assert_trace(actual, expected):
     """Events equal one by one; floats to 1e-9 s."""
     assert len(actual) == len(expected), f"trace {actual}\n  expected {expected}"

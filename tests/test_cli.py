@@ -12,7 +12,7 @@ import tomllib
 
 import pytest
 
-from _support import flat
+from _support import assert_user_error, flat
 from ata import __version__
 from ata.core import runner as runner_mod
 from ata.core.mission import ComponentSlots, MissionSettings
@@ -259,20 +259,6 @@ BAD_FILES = {
                                  ["[on_event] key 'x': this component takes no settings"]),
     "not_a_table": ("mission = 3\n", ["[mission]: must be a table"]),
 }
-
-
-def assert_user_error(result, *fragments: str) -> None:
-    """Exit 2, no traceback, exactly one message, holding every fragment."""
-    assert result.exit_code == 2, result.output
-    # typer.Exit(2), not an uncaught exception (CliRunner would report one as exit code 1)
-    assert result.exception is None or isinstance(result.exception, SystemExit)
-    assert "Traceback" not in result.output
-    lines = result.output.splitlines()
-    assert lines[0].startswith("error: ")
-    assert sum(line.startswith("error:") for line in lines) == 1, result.output
-    text = flat(result.output)
-    for fragment in fragments:
-        assert fragment in text, f"{fragment!r} not in {text!r}"
 
 
 @pytest.mark.parametrize("command", ["check", "run"])

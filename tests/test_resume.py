@@ -174,7 +174,7 @@ def test_a_killed_run_resumes_with_the_results_of_an_uninterrupted_run(tmp_path)
     assert 2 <= saved < 8 and not (out / "results.csv").exists()
     again = ata_run(out)
     assert again.wait(timeout=300) == 0, again.stderr.read()
-    assert f"resuming {out}: {saved} of 8 batches were done before" in \
+    assert f"resuming {out}: {saved} of 8 batches were done before; running the other " in \
         " ".join(again.stderr.read().split())
     assert (out / "results.csv").read_text() == (whole / "results.csv").read_text()
 

@@ -9,7 +9,7 @@ import csv
 import numpy as np
 import pytest
 
-from _support import flat
+from _support import assert_user_error, flat
 from ata.core import runner
 from ata.core.kernel import Simulation
 from ata.plugins import tables
@@ -245,30 +245,18 @@ def test_show_defaults_to_a_folder_in_the_run(cli, run_dir):
         f"{stem}.{ext}" for stem in STEMS for ext in ("png", "svg"))
 
 
-def assert_one_error(result, *fragments: str) -> None:
-    """Exit 2, no traceback, one message holding every fragment."""
-    assert result.exit_code == 2, result.output
-    assert result.exception is None or isinstance(result.exception, SystemExit)
-    assert "Traceback" not in result.output
-    lines = result.output.splitlines()
-    assert lines[0].startswith("error: ")
-    assert sum(line.startswith("error:") for line in lines) == 1, result.output
-    for fragment in fragments:
-        assert fragment in flat(result.output), (fragment, result.output)
-
-
 @pytest.mark.parametrize("scenario", [4, -1, 1000])
 def test_bad_scenario_number(cli, run_dir, tmp_path, scenario):
     out = tmp_path / "pictures"
     result = cli("show", run_dir, "--scenario", scenario, "--out", out)
-    assert_one_error(result, f"error: {run_dir / 'mission.resolved.toml'}: --scenario: "
+    assert_user_error(result, f"error: {run_dir / 'mission.resolved.toml'}: --scenario: "
                              f"{scenario} is not one of the mission's scenarios: ids 0 to 3")
     assert not out.exists()
 
 
 def test_folder_without_a_mission(cli, tmp_path):
     result = cli("show", tmp_path, "--scenario", 0)
-    assert_one_error(result, f"error: {tmp_path}: no mission.resolved.toml here: not a run "
+    assert_user_error(result, f"error: {tmp_path}: no mission.resolved.toml here: not a run "
                              "folder")
 
 

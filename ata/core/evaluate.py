@@ -417,12 +417,7 @@ def evaluate(jobs: list[Job], executor: Executor, *, chunk_size: int = DEFAULT_C
         is recorded there durably as it finishes.
     """
     units = make_units(jobs, chunk_size, cache, executor.parallel)
-    parts: list[dict[str, Any] | None] = [None] * len(units)
-    todo = list(range(len(units)))
-    if log is not None:
-        for i, part in log.done.items():
-            parts[i] = part
-        todo = log.missing()
+    parts, todo = runlog.parts_and_todo(log, len(units))
     t0 = time.perf_counter()
     for k, out in executor.run(run_unit, [units[i] for i in todo]):
         i = todo[k]

@@ -136,3 +136,14 @@ class RunLog:
 
     def close(self) -> None:
         self._file.close()
+
+
+def parts_and_todo(log: RunLog | None, units: int) -> tuple[list[Any], list[int]]:
+    """The results of `units` work units so far (None where not done) and the indices still to
+    run: all of them without a log, else those the log does not hold."""
+    parts: list[Any] = [None] * units
+    if log is None:
+        return parts, list(range(units))
+    for i, part in log.done.items():
+        parts[i] = part
+    return parts, log.missing()

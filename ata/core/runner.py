@@ -230,12 +230,7 @@ def run_mission(session: Session, progress: Callable[[int], None] | None = None,
     workers = workers or mission.settings.workers
     chunks = chunks if chunks is not None else chunks_of(mission, workers)
     n_epochs = mission.clock.n_epochs
-    parts: list[dict[str, Any] | None] = [None] * len(chunks)
-    todo = list(range(len(chunks)))
-    if log is not None:
-        for i, part in log.done.items():
-            parts[i] = part
-        todo = log.missing()
+    parts, todo = runlog.parts_and_todo(log, len(chunks))
     t0 = time.perf_counter()
 
     def finished(i: int, part: dict[str, Any]) -> None:

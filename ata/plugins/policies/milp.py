@@ -19,7 +19,6 @@ import json
 import os
 import time
 import warnings
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -29,6 +28,7 @@ from scipy.optimize import LinearConstraint, milp
 
 from ata import hookimpl
 from ata.core.cache import cache_dir
+from ata.core.executors import ProcessExecutor
 from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext, SimState
 from ata.plugins import tables
@@ -431,9 +431,11 @@ class MilpPolicy:
         if self.s.workers <= 1 or len(data) <= self.s.chunk_size:
             return [solve_scenario(d, self.s) for d in data]
         chunks = [data[i:i + self.s.chunk_size] for i in range(0, len(data), self.s.chunk_size)]
-        with ProcessPoolExecutor(max_workers=self.s.workers) as pool:
-            parts = pool.map(_solve_chunk, [(c, self.s) for c in chunks])
-            return [sol for part in parts for sol in part]
+        parts: list[list[Solution]] = [[] for _ in chunks]
+        with ProcessExecutor(self.s.workers) as pool:   # ata's one process pool
+            for i, part in pool.run(_solve_chunk, [(c, self.s) for c in chunks]):
+                parts[i] = part
+        return [sol for part in parts for sol in part]
 
     @hookimpl
     def ata_initial_allocation(self, ctx: DecisionContext) -> Allocation:
