@@ -4,6 +4,7 @@ training run folder: the numbers against a hand computation, the files written, 
 from __future__ import annotations
 
 import csv
+import json
 from pathlib import Path
 
 import numpy as np
@@ -233,3 +234,41 @@ def test_neither_an_evaluation_nor_a_training_folder(cli, tmp_path):
     (tmp_path / "train" / "log.csv").write_text("phase,step,loss\nita,1,0.5\n")
     res = cli("report", tmp_path / "eval", tmp_path / "train")
     assert res.exit_code == 2 and "a training run folder is reported alone" in flat(res.output)
+
+
+# --- bad results files: one message, exit 2 -------------------------------------------------------
+
+GOOD = ("method,setting,uncertainty,scenario,seed,score,upper_bound,fraction_of_u,"
+        "classified_share\n"
+        "greedy,a,low,1000,0,300.0,600.0,0.5,0.9\n"
+        "greedy,a,low,1001,0,310.0,620.0,0.5,0.9\n"
+        "random,a,low,1000,0,100.0,600.0,0.16,0.5\n"
+        "random,a,low,1001,0,90.0,620.0,0.15,0.5\n")
+
+
+@pytest.mark.parametrize("text, eval_rows, message", [
+    (GOOD[:-20], None, "line 5 has fewer fields than the header: the file is cut short or garbled"),
+    (GOOD.replace("310.0", "lots"), None, "line 3: score is 'lots', not a number"),
+    (GOOD + "random,a,low,1002,0,1,2,3,4,5\n", None,
+     "line 6 has more fields than the header: the file is cut short or garbled"),
+    (GOOD, 6, "holds 4 rows where eval.json says 6: the file is incomplete or was changed"),
+])
+def test_a_broken_results_file_is_one_error(cli, tmp_path, text, eval_rows, message):
+    folder = tmp_path / "eval"
+    folder.mkdir()
+    (folder / "results.csv").write_text(text)
+    if eval_rows is not None:
+        (folder / "eval.json").write_text(json.dumps({"rows": eval_rows}))
+    result = cli("report", folder, "--no-figures")
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    assert " ".join(result.output.split()) == f"error: {folder / 'results.csv'}: {message}"
+
+
+def test_a_sound_results_file_is_read(cli, tmp_path):
+    folder = tmp_path / "eval"
+    folder.mkdir()
+    (folder / "results.csv").write_text(GOOD)
+    (folder / "eval.json").write_text(json.dumps({"rows": 4}))
+    result = cli("report", folder, "--no-figures")
+    assert result.exit_code == 0, result.output

@@ -15,6 +15,7 @@ curves (`write_curves`).
 from __future__ import annotations
 
 import csv
+import json
 import math
 import re
 from dataclasses import dataclass, field
@@ -80,6 +81,8 @@ class Results:
 
 REQUIRED = ("method", "setting", "uncertainty", "scenario", "seed", "score", "upper_bound",
             "fraction_of_u", "classified_share")
+NUMERIC = ("scenario", "score", "upper_bound")
+"""Columns every row must hold a number in."""
 
 
 def level_key(level: str) -> tuple[int, str]:
@@ -105,6 +108,27 @@ def _read_one(path: str | Path) -> tuple[list[dict[str, str]], list[str]]:
                            file=str(path))
     if not rows:
         raise MissionError("", None, "has no rows", file=str(path))
+    for line, row in enumerate(rows, start=2):
+        if None in row or any(v is None for v in row.values()):
+            raise MissionError("", None, f"line {line} has {'more' if None in row else 'fewer'} "
+                               f"fields than the header: the file is cut short or garbled",
+                               file=str(path))
+        for column in NUMERIC:
+            try:
+                float(row[column]) if column != "scenario" else int(row[column])
+            except ValueError:
+                raise MissionError("", None, f"line {line}: {column} is {row[column]!r}, not a "
+                                   "number", file=str(path)) from None
+    meta = path.with_name("eval.json")
+    if meta.is_file():
+        try:
+            planned = json.loads(meta.read_text(encoding="utf-8")).get("rows")
+        except (json.JSONDecodeError, AttributeError):
+            planned = None
+        if isinstance(planned, int) and planned != len(rows):
+            raise MissionError("", None, f"holds {len(rows)} rows where eval.json says "
+                               f"{planned}: the file is incomplete or was changed",
+                               file=str(path))
     return rows, list(header)
 
 
