@@ -107,7 +107,7 @@ def _say_resuming(log, out_dir: Path, what: str) -> None:
 
 def _interrupted(log, out_dir: Path, what: str) -> typer.Exit:
     """Say what an interrupted run saved and how to go on; the exit to raise (130)."""
-    err_console.print(escape(f"interrupted: {len(log.done)} of {log.units} {what} are saved in "
+    err_console.print(escape(f"interrupted: {log.saved()} of {log.units} {what} are saved in "
                              f"{out_dir}; run the same command with --out {out_dir} to go on"),
                       highlight=False, soft_wrap=True)
     return typer.Exit(130)
@@ -148,8 +148,8 @@ def run(mission: Optional[str] = typer.Argument(
 
     Each finished batch is saved in the run folder as it ends: rerun the same command with the
     same --out to go on after an interruption (only what is missing runs)."""
-    from ata.core import runner
-    from ata.core.runlog import RunLog
+    from ata.experiment import runner
+    from ata.experiment.runlog import RunLog
 
     from ata.core.kernel import Simulation
 
@@ -186,7 +186,7 @@ def render_summary(session, result) -> None:
     """The summary of a run: a key per line, readable at 80 columns."""
     from rich import box
 
-    from ata.core.runner import summarize
+    from ata.experiment.runner import summarize
 
     m, s = session.mission, summarize(result)
     table = Table(title=escape(f"{m.display_name()}: {m.settings.name}"), box=box.SIMPLE,
@@ -233,7 +233,7 @@ def train(mission: Optional[str] = typer.Argument(
           quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar.")) -> None:
     """Train the learned components of a mission with the trainer it names (ata_hrl: ATA-HRL
     and its ablations; dqn: the TR-POMDP agents, also after the attention ITA for AtRL-TR)."""
-    from ata.core import runner
+    from ata.experiment import runner
     from ata.training import TrainRun
 
     if resume is not None:
@@ -294,7 +294,7 @@ def check(mission: str = typer.Argument(..., metavar="MISSION", help="Mission fi
           plugins: Optional[str] = PluginsOption,
           show: bool = typer.Option(False, "--show", help="Print the resolved mission.")) -> None:
     """Validate a mission file without running it."""
-    from ata.core import runner
+    from ata.experiment import runner
     from ata.core.kernel import Simulation
 
     session = runner.load_session(mission, set_ or [], _split(plugins))
@@ -413,12 +413,12 @@ def eval_(paths: List[str] = typer.Argument(
     with the same --out to go on after an interruption (only what is missing runs)."""
     import numpy as np
 
-    from ata.core import evaluate as ev
-    from ata.core import report as rep
-    from ata.core import runner
+    from ata.experiment import evaluate as ev
+    from ata.experiment import report as rep
+    from ata.experiment import runner
     from ata.core.errors import MissionError
-    from ata.core.executors import EXECUTORS, make_executor
-    from ata.core.runlog import RunLog
+    from ata.experiment.executors import EXECUTORS, make_executor
+    from ata.experiment.runlog import RunLog
 
     if executor not in EXECUTORS:
         raise MissionError("--executor", None, f"unknown executor {executor!r}; choose one of "
@@ -465,7 +465,7 @@ def eval_(paths: List[str] = typer.Argument(
 
 
 def _render_report(report) -> None:
-    from ata.core.report import table_rows, title
+    from ata.experiment.report import table_rows, title
 
     for setting, level in report.groups():
         header, rows = table_rows(report, setting, level, short=True)
@@ -500,7 +500,7 @@ def report(run_dir: List[Path] = typer.Argument(..., metavar="DIR...",
                                          help="Bootstrap resamples.")) -> None:
     """Tables (with bootstrap confidence intervals) and figures of an evaluation, or the
     learning curves of a training run."""
-    from ata.core import report as rep
+    from ata.experiment import report as rep
     from ata.core.errors import MissionError
 
     if any(rep.is_training_folder(d) for d in run_dir):

@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ata.core.errors import MissionError
-from ata.core.evaluate import EVAL_FIRST_SCENARIO
+from ata.experiment.heldout import EVAL_FIRST_SCENARIO
 
 TRAINING_ID_LIMIT = EVAL_FIRST_SCENARIO
 """Training scenario ids lie below this; evaluation ids start there."""

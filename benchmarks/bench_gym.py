@@ -23,7 +23,7 @@ from gymnasium.vector import SyncVectorEnv
 from rich.console import Console
 from rich.table import Table
 
-from ata.core.runner import BASELINE_MISSION, load_session
+from ata.experiment.runner import BASELINE_MISSION, load_session
 from ata.gym import CentralisedEnv, CentralisedVectorEnv, sample_masked
 
 SMALL_TEAM = Path(__file__).resolve().parent.parent / "examples" / "missions" / \

@@ -17,8 +17,8 @@ import time
 from rich.console import Console
 from rich.table import Table
 
-from ata.core.runner import BASELINE_MISSION
-from ata.core.runner import load_session, run_mission
+from ata.experiment.runner import BASELINE_MISSION
+from ata.experiment.runner import load_session, run_mission
 
 CONFIGS = {
     "greedy ITA only": ["components.condition='never'"],

@@ -14,9 +14,9 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from ata.core.runner import BASELINE_MISSION
+from ata.experiment.runner import BASELINE_MISSION
 from ata.core.kernel import Simulation
-from ata.core.runner import load_session
+from ata.experiment.runner import load_session
 from ata.core.state import Observation
 from ata.plugins.policies import milp as M
 

@@ -15,8 +15,8 @@ import argparse
 from rich.console import Console
 from rich.table import Table
 
-from ata.core.runner import BASELINE_MISSION
-from ata.core.runner import load_session, run_mission
+from ata.experiment.runner import BASELINE_MISSION
+from ata.experiment.runner import load_session, run_mission
 
 METHODS = {
     "greedy (ITA only)": ["components.initial='greedy'", "components.condition='never'"],

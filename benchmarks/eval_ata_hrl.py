@@ -15,7 +15,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from ata.core.runner import BASELINE_MISSION, load_session, mean_ci, run_mission
+from ata.experiment.runner import BASELINE_MISSION, load_session, mean_ci, run_mission
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "missions"
 METHODS = {

@@ -13,7 +13,7 @@ import torch
 from _support import train, whole_and_killed
 from ata.core.errors import MissionError
 from ata.core.kernel import Simulation
-from ata.core.runner import (BASELINE_MISSION, build_trainer, load_session,
+from ata.experiment.runner import (BASELINE_MISSION, build_trainer, load_session,
                              training_mission_for)
 from ata.core.state import Allocation
 from ata.plugins import tables
@@ -221,7 +221,7 @@ def test_the_shipped_ita_is_trained_and_decides_otherwise_than_its_prior():
 @pytest.mark.slow
 def test_shipped_ata_hrl_beats_greedy_on_held_out_scenarios_of_a_at_medium():
     # the suite's (a) medium cell (docs/RESULTS.md: +16.6 [+5.4, +27.8]): paired, 500 scenarios
-    from ata.core.runner import run_mission
+    from ata.experiment.runner import run_mission
     from ata.training import WEIGHTS
     common = ["mission.scenarios=500", "mission.first_scenario=1099511627776",
               "mission.seed=0", "mission.setting='a'", "mission.uncertainty='medium'"]

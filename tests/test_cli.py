@@ -14,7 +14,7 @@ import pytest
 
 from _support import assert_user_error, flat
 from ata import __version__
-from ata.core import runner as runner_mod
+from ata.experiment import runner as runner_mod
 from ata.core.mission import ComponentSlots, MissionSettings
 from ata.core.registry import BUILTIN_PLUGINS, collect_components, get_plugin_manager
 
@@ -340,7 +340,7 @@ def test_a_latency_group_that_does_not_exist_is_refused_by_check(cli, tiny):
 
 def test_an_output_folder_under_a_file_is_refused_before_any_work(cli, tiny, tmp_path,
                                                                    monkeypatch):
-    from ata.core import runner
+    from ata.experiment import runner
     ran = []
     monkeypatch.setattr(runner, "run_mission", lambda *a, **k: ran.append(1))
     blocker = tmp_path / "file"
@@ -351,7 +351,7 @@ def test_an_output_folder_under_a_file_is_refused_before_any_work(cli, tiny, tmp
 
 
 def test_two_runs_in_the_same_second_get_two_folders(tiny, tmp_path, monkeypatch):
-    from ata.core import runner
+    from ata.experiment import runner
     monkeypatch.setenv("ATA_RUNS", str(tmp_path))
     monkeypatch.setattr(runner.time, "strftime", lambda fmt: "20260101-000000")
     mission = runner.load_session(str(tiny)).mission

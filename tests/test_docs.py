@@ -43,9 +43,9 @@ def test_readme_commands_match_ci():
 
 
 def test_example_missions_validate():
-    from ata.core.evaluate import plan
+    from ata.experiment.evaluate import plan
     from ata.core.mission import read_toml
-    from ata.core.runner import load_session
+    from ata.experiment.runner import load_session
     suites = 0
     for path in sorted((ROOT / "examples").rglob("*.toml")):
         if path.name == "pyproject.toml" or "third_party" in str(path):

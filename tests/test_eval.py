@@ -13,14 +13,14 @@ import numpy as np
 import pytest
 
 from _support import flat, tiny_data
-from ata.core import evaluate as ev
-from ata.core import report as rep
-from ata.core.cache import cache_dir, run_cache
+from ata.experiment import evaluate as ev
+from ata.experiment import report as rep
+from ata.experiment.cache import cache_dir, run_cache
 from ata.core.errors import MissionError
-from ata.core.executors import ProcessExecutor, SerialExecutor
+from ata.experiment.executors import ProcessExecutor, SerialExecutor
 from ata import hookimpl
 from ata.core.kernel import Simulation
-from ata.core.runner import BASELINE_MISSION, load_session, run_mission
+from ata.experiment.runner import BASELINE_MISSION, load_session, run_mission
 from ata.plugins.policies import milp as M
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -142,7 +142,7 @@ def test_rows_identical_across_executors_and_chunks(suite):
 @pytest.mark.ray
 def test_rows_identical_on_ray(suite):
     pytest.importorskip("ray")
-    from ata.core.executors import RayExecutor
+    from ata.experiment.executors import RayExecutor
 
     serial = _rows(SerialExecutor(), suite, chunk_size=5, scenarios=3)
     assert without_wall(_rows(RayExecutor(workers=2), suite, chunk_size=2, scenarios=3)) == \

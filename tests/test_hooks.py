@@ -18,7 +18,7 @@ from ata.core.errors import ContractError, MissionError
 from ata.core.kernel import Simulation
 from ata.core.mission import validate
 from ata.core.registry import Register, collect_components, get_plugin_manager
-from ata.core.runner import Session, run_mission
+from ata.experiment.runner import Session, run_mission
 from ata.core.state import Allocation
 from ata.plugins import tables
 

@@ -160,7 +160,7 @@ class Deciders(Spy):
 
 def test_the_kernel_calls_every_phase_hook_as_often_as_it_says():
     from ata.core.kernel import Simulation
-    from ata.core.runner import BASELINE_MISSION, load_session
+    from ata.experiment.runner import BASELINE_MISSION, load_session
     from ata.plugins.routing import NearestRouting
 
     session = load_session(str(BASELINE_MISSION), [

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from _support import tiny_data
-from ata.core.runner import BASELINE_MISSION
+from ata.experiment.runner import BASELINE_MISSION
 from ata.core.kernel import Simulation
-from ata.core.runner import load_session, run_mission
+from ata.experiment.runner import load_session, run_mission
 from ata.core.state import Observation
 from ata.plugins import tables
 from ata.plugins.policies import milp as M

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from _support import flat
-from ata.core import report as rep
+from ata.experiment import report as rep
 from ata.core.errors import MissionError
 from ata.training import TrainRun
 

@@ -151,7 +151,7 @@ def test_ctrl_c_stops_at_once_saying_what_was_saved(suite, tmp_path):
 
 
 def ata_run(out: Path, *extra: str) -> subprocess.Popen:
-    from ata.core.runner import BASELINE_MISSION   # greedy, on-event reallocation
+    from ata.experiment.runner import BASELINE_MISSION   # greedy, on-event reallocation
     return subprocess.Popen([sys.executable, "-c", "from ata.cli import app; app()", "run",
                              str(BASELINE_MISSION), "--set", "mission.scenarios=24",
                              "--set", "mission.batch_size=3", "-o", str(out), "-q", *extra],
@@ -180,7 +180,7 @@ def test_a_killed_run_resumes_with_the_results_of_an_uninterrupted_run(tmp_path)
 
 
 def test_workers_are_honoured_even_for_one_batch():
-    from ata.core.runner import BASELINE_MISSION, chunks_of, load_session
+    from ata.experiment.runner import BASELINE_MISSION, chunks_of, load_session
     mission = load_session(str(BASELINE_MISSION), ["mission.scenarios=10"]).mission
     assert [c.size for c in chunks_of(mission, 1)] == [10]          # batch_size 500
     assert [c.size for c in chunks_of(mission, 2)] == [5, 5]

@@ -18,7 +18,7 @@ from _support import (AIR, GROUND, HIGH, LOW, MED, UAV, Scripted, assert_trace, 
                       observed_after, perf, run_epochs, set_humans, set_robots, set_tasks)
 from ata import hookimpl
 from ata.core.kernel import Simulation
-from ata.core.runner import BASELINE_MISSION, load_session, run_mission
+from ata.experiment.runner import BASELINE_MISSION, load_session, run_mission
 from ata.plugins.policies.greedy import GreedyPolicy, RetaskCost
 
 GOLDEN = Path(__file__).parent / "data" / "free_reallocation.json"

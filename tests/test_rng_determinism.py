@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from ata.core.runner import BASELINE_MISSION
+from ata.experiment.runner import BASELINE_MISSION
 from ata.core.rng import BatchRNG, scenario_keys, stream_id
-from ata.core.runner import load_session, run_mission
+from ata.experiment.runner import load_session, run_mission
 
 SEED = 12345
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from _support import assert_user_error, flat
-from ata.core import runner
+from ata.experiment import runner
 from ata.core.kernel import Simulation
 from ata.plugins import tables
 from ata.viz.record import RIGHT, WRONG, Episode, Recorder, replay

@@ -15,7 +15,7 @@ import pluggy
 import pytest
 
 from ata import hookimpl
-from ata.core import runner
+from ata.experiment import runner
 from ata.core.kernel import Simulation
 from ata.core.registry import collect_components, get_plugin_manager, plugin_version
 

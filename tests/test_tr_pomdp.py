@@ -8,7 +8,7 @@ import torch
 
 from _support import train, whole_and_killed
 from ata.core.kernel import Simulation
-from ata.core.runner import load_session, run_mission, training_mission_for
+from ata.experiment.runner import load_session, run_mission, training_mission_for
 from ata.core.state import Allocation
 from ata.plugins.conditions import Always
 from ata.plugins.tr_pomdp import agents as dqn

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import sys
 
-from ata.core.report import read_results, summarize
+from ata.experiment.report import read_results, summarize
 
 PAIRS = [("ATA-HRL", "greedy"), ("ATA-HRL", "ATA-HRL (learned off)"), ("ATA-HRL", "w/o.AUX"),
          ("ATA-HRL", "w/o.C"), ("AtRL-TR", "TR-POMDP"), ("ATA-HRL", "ITA-MILP"),

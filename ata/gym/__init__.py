@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 import gymnasium
 
-from ata.core.runner import Session
+from ata.experiment.runner import Session
 from ata.gym.centralised import CentralisedEnv, CentralisedVectorEnv, sample_masked
 
 if TYPE_CHECKING:

@@ -12,7 +12,7 @@ import csv
 from dataclasses import dataclass
 from pathlib import Path
 
-from ata.core import runner
+from ata.experiment import runner
 from ata.core.errors import MissionError
 from ata.viz import draw
 from ata.viz.record import Episode, replay

@@ -27,10 +27,10 @@ from scipy import sparse
 from scipy.optimize import LinearConstraint, milp
 
 from ata import hookimpl
-from ata.core.cache import cache_dir
-from ata.core.executors import ProcessExecutor
 from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext, SimState
+from ata.experiment.cache import cache_dir
+from ata.experiment.executors import ProcessExecutor
 from ata.plugins import tables
 
 STATUS_TEXT = {0: "optimal", 1: "limit reached", 2: "infeasible", 3: "unbounded", 4: "error",
@@ -294,7 +294,7 @@ def _solve_chunk(args: tuple) -> list[Solution]:
 # -- the solution cache ----------------------------------------------------------------------
 # A scenario's MILP depends on its ScenarioData (I, the working hours at t = 0, the horizon and
 # the uncertainty level) and the [milp] settings alone, so its solution can be kept on disk and
-# reused by the next evaluation: under milp/ in the run's cache folder (`ata.core.cache`), when
+# reused by the next evaluation: under milp/ in the run's cache folder (`ata.experiment.cache`), when
 # one is set (`ata eval` sets one).
 
 CACHE_FORMAT = 1

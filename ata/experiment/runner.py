@@ -21,11 +21,12 @@ import tomli_w
 
 from ata import __version__
 from ata.core import mission as mission_mod
-from ata.core import runlog
 from ata.core.errors import MissionError
 from ata.core.kernel import Simulation
 from ata.core.mission import Mission
 from ata.core.registry import Register, collect_components, get_plugin_manager
+from ata.experiment import runlog
+from ata.experiment.heldout import EVAL_FIRST_SCENARIO
 
 BUILTIN_MISSION = Path(__file__).resolve().parent.parent / "missions" / "default.toml"
 """`ata run`'s default: the full ATA-HRL method with its shipped weights."""
@@ -96,7 +97,6 @@ def training_mission_for(plugins: list[str]) -> Path:
 def build_trainer(session: Session) -> Any:
     """The trainer component the mission names in [components] trainer, built from its table;
     its scenario ranges are checked to stay below the evaluation ids."""
-    from ata.training import TRAINING_ID_LIMIT
     m = session.mission
     name = m.slots.trainer
     if name == "none":
@@ -110,9 +110,9 @@ def build_trainer(session: Session) -> Any:
         raise exc.with_file(m.source) from None
     trainer.component_name = name
     for seed, lo, hi in trainer.scenario_ranges():
-        if hi > TRAINING_ID_LIMIT:
+        if hi > EVAL_FIRST_SCENARIO:
             raise MissionError(f"[{name}]", None, f"trains on scenario ids up to {hi - 1}, "
-                               f"which reach the evaluation ids (from {TRAINING_ID_LIMIT})",
+                               f"which reach the evaluation ids (from {EVAL_FIRST_SCENARIO})",
                                file=m.source)
     return trainer
 
@@ -224,7 +224,7 @@ def run_mission(session: Session, progress: Callable[[int], None] | None = None,
     `ata eval`. With `log` (`ata run`'s output folder), chunks it holds are not run again and
     each chunk is recorded there as it finishes.
     """
-    from ata.core.executors import ProcessExecutor
+    from ata.experiment.executors import ProcessExecutor
 
     mission = session.mission
     workers = workers or mission.settings.workers

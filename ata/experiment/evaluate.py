@@ -3,7 +3,7 @@
 A *suite* file names methods (each a mission file plus ``--set`` overrides) and the settings and
 uncertainty levels to run them at; a plain mission file counts as one method at its own setting
 and level. Every (method, setting, level) becomes a *job*: a validated mission whose scenarios
-are cut into chunks, the work units that an executor (ata.core.executors) runs anywhere. A
+are cut into chunks, the work units that an executor (ata.experiment.executors) runs anywhere. A
 scenario's numbers depend on (seed, scenario id) alone, so the rows do not depend on the
 executor, the worker count or the chunk size.
 
@@ -29,18 +29,17 @@ import tomli_w
 
 from ata import __version__
 from ata.core import mission as mission_mod
-from ata.core import runlog
-from ata.core.cache import run_cache
 from ata.core.errors import MissionError
-from ata.core.executors import Executor
 from ata.core.kernel import Simulation
 from ata.core.mission import UNCERTAINTY_LEVELS, Mission
 from ata.core.registry import collect_components, get_plugin_manager
-from ata.core.runner import (Session, load_session, new_folder, one_worker, run_batch,
-                             torch_one_thread)
+from ata.experiment import runlog
+from ata.experiment.cache import run_cache
+from ata.experiment.executors import Executor
+from ata.experiment.heldout import EVAL_FIRST_SCENARIO
+from ata.experiment.runner import (Session, load_session, new_folder, one_worker, run_batch,
+                                   torch_one_thread)
 
-EVAL_FIRST_SCENARIO = 2 ** 40
-"""The first scenario id of every evaluation: far above any id training uses."""
 DEFAULT_SCENARIOS = 500
 """Scenarios per (method, setting, level) when neither the suite nor the command says."""
 DEFAULT_CHUNK = 50

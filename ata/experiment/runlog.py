@@ -131,6 +131,12 @@ class RunLog:
         os.fsync(self._file.fileno())
         self.done[index] = part
 
+    def saved(self) -> int:
+        """How many finished units the file holds, read back from disk (what a rerun finds,
+        even when an interrupt came in the middle of `add`)."""
+        self._file.flush()
+        return len(self._read(self.dir / UNITS))
+
     def missing(self) -> list[int]:
         return [i for i in range(self.units) if i not in self.done]
 
