@@ -23,12 +23,11 @@ import numpy as np
 from ata import hookimpl
 from ata.core.errors import ContractError
 from ata.core.kernel import Simulation
-from ata.core.mission import Mission, validate
+from ata.core.mission import SLOTS, Mission, validate
 from ata.core.registry import collect_components, get_plugin_manager
 
-SLOT_OF_KIND = {"task_model": "task_model", "human_model": "human_model",
-                "robot_model": "robot_model", "routing": "routing", "injector": "injectors",
-                "reconstructor": "reconstructors", "policy": "initial", "condition": "condition"}
+SLOT_OF_KIND = {s.kind: s.name for s in reversed(SLOTS)}
+"""The slot a component of each kind is checked in (a policy's: the first, initial)."""
 
 
 def _contributor(kind: str, name: str, factory: Callable[..., Any]) -> Any:

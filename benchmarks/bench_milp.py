@@ -34,7 +34,7 @@ def main() -> None:
         session = load_session(str(BASELINE_MISSION), [f"mission.setting='{setting}'", f"mission.seed={args.seed}",
                                       f"mission.scenarios={args.scenarios}",
                                       "components.initial='milp'", "components.condition='never'",
-                                      "components.reallocation='milp'"])
+                                      "components.reallocation='keep'"])
         sim = Simulation(session.mission, session.registry, list(range(args.scenarios)))
         sim.reset()
         truth = Observation()

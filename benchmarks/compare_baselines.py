@@ -27,7 +27,7 @@ METHODS = {
     "greedy_realloc": ["components.initial='greedy'", "components.condition='on_event'",
                        "components.reallocation='greedy'"],
     "milp": ["components.initial='milp'", "components.condition='never'",
-             "components.reallocation='milp'"],
+             "components.reallocation='keep'"],
 }
 LEVELS = ("low", "medium", "high")
 

@@ -26,7 +26,7 @@ METHODS = {
                                  "components.condition='on_event'",
                                  "components.reallocation='greedy'"]),
     "ITA-MILP": (None, ["components.initial='milp'", "components.condition='never'",
-                        "components.reallocation='milp'", "milp.workers=2"]),
+                        "components.reallocation='keep'", "milp.workers=2"]),
 }
 
 

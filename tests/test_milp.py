@@ -15,7 +15,7 @@ from ata.plugins import tables
 from ata.plugins.policies import milp as M
 
 MILP_SLOTS = ["components.initial='milp'", "components.condition='never'",
-              "components.reallocation='milp'"]
+              "components.reallocation='keep'"]
 
 
 def brute_force(model: M.Model) -> float:

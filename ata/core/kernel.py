@@ -14,15 +14,10 @@ import pluggy
 
 from ata import hookspecs
 from ata.core.errors import ContractError, MissionError
-from ata.core.mission import SLOT_KINDS, Mission
+from ata.core.mission import SLOT_HOOKS, SLOT_KINDS, Mission
 from ata.core.registry import Register
 from ata.core.rng import BatchRNG
 from ata.core.state import Allocation, DecisionContext, EpisodeRecord, Observation, SimState
-
-SLOT_HOOKS = {"routing": "ata_next_targets", "initial": "ata_initial_allocation",
-              "condition": "ata_should_reallocate", "reallocation": "ata_reallocate"}
-"""Single-choice slots and the hook called on the chosen component alone."""
-
 
 def build_component(registry: Register, mission: Mission, kind: str, name: str) -> Any:
     """Create one component instance from its factory and its resolved settings (its defaults

@@ -77,11 +77,28 @@ class ComponentSlots:
                          "(none: nothing to train)")
 
 
-SLOT_KINDS = {"task_model": "task_model", "human_model": "human_model",
-              "robot_model": "robot_model", "routing": "routing", "injectors": "injector",
-              "reconstructors": "reconstructor", "initial": "policy", "condition": "condition",
-              "reallocation": "policy"}
-"""The slots a simulation fills, and the kind of component each takes."""
+@dataclass(frozen=True)
+class Slot:
+    """A slot of ``[components]``: the kind of component it takes, and, for a single-choice slot
+    whose component alone is asked (a decision, the routing), the hook called on it; list slots
+    and the models take part in every phase hook."""
+
+    name: str
+    kind: str
+    hook: str | None = None
+
+
+SLOTS = (Slot("task_model", "task_model"), Slot("human_model", "human_model"),
+         Slot("robot_model", "robot_model"), Slot("routing", "routing", "ata_next_targets"),
+         Slot("injectors", "injector"), Slot("reconstructors", "reconstructor"),
+         Slot("initial", "policy", "ata_initial_allocation"),
+         Slot("condition", "condition", "ata_should_reallocate"),
+         Slot("reallocation", "policy", "ata_reallocate"))
+"""The slots a simulation fills, in hook-call order: the one place the slot model is written."""
+SLOT_KINDS = {s.name: s.kind for s in SLOTS}
+"""Slot name -> the kind of component it takes."""
+SLOT_HOOKS = {s.name: s.hook for s in SLOTS if s.hook}
+"""Single-choice slots -> the hook called on the chosen component alone."""
 TRAINER_SLOT = ("trainer", "trainer")
 """The slot `ata train` fills (slot, kind); "none" leaves it empty."""
 

@@ -139,10 +139,6 @@ class AttentionITA(LearnedComponent):
         return D.decode(dec, self.net.ita, emb, self.chooser(ctx, "attention"),
                         residual=self.settings.learned, trace=trace)
 
-    @hookimpl
-    def ata_reallocate(self, ctx: DecisionContext, active: np.ndarray) -> Allocation:
-        return ctx.previous
-
 
 class CTRPolicy(LearnedComponent):
     """pi_C and pi_TR. At every epoch t >= 1 the state encoder reads I and S as the policy sees

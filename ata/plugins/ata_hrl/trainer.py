@@ -299,7 +299,7 @@ class ATAHRLTrainer:
                 initial.train_with(self.net, recorder, sampler)
         if phase == "ita" and not self.s.ita_reallocates:
             out["condition"] = build_component(self.registry, mission, "condition", "never")
-            out["reallocation"] = initial          # the ITA phase's initial is the ITA
+            out["reallocation"] = build_component(self.registry, mission, "policy", "keep")
         else:
             ctr = None
             if self.trains_cond or self.trains_tr:

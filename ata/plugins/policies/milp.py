@@ -462,10 +462,6 @@ class MilpPolicy:
         return alloc
 
     @hookimpl
-    def ata_reallocate(self, ctx: DecisionContext, active: np.ndarray) -> Allocation:
-        return ctx.previous
-
-    @hookimpl
     def ata_episode_end(self, sim: SimState) -> None:
         if not self.solutions:
             return
