@@ -209,9 +209,10 @@ def test_ata_observe_writes_the_true_state():
     sim.reset()
     sim.step_epoch()
     (ctx,) = seen
-    assert ctx.truth["clock"].col("now").tolist() == [[0.0], [0.0]]
+    assert sim.last_truth["clock"].col("now").tolist() == [[0.0], [0.0]]
     assert ctx.observed["clock"].col("now").tolist() == [[0.0], [0.0]]
-    assert ctx.observed["clock"] is not ctx.truth["clock"]     # the observation is a copy
+    assert ctx.observed["clock"] is not sim.last_truth["clock"]   # the observation is a copy
+    assert not hasattr(ctx, "truth")                              # policies never see it
 
 
 @pytest.mark.parametrize("order, expected", [(["set_half", "double"], 1.0),
@@ -236,7 +237,7 @@ def test_ata_inject_runs_in_listed_order_on_a_copy(order, expected):
     assert np.all(ctx.observed["humans"].col("fatigue") == expected)
     # the truth is untouched: F_f of the initial working hours
     hours = sim.sim.group("humans").t0_h
-    assert np.array_equal(ctx.truth["humans"].col("fatigue"), tables.fatigue(hours))
+    assert np.array_equal(sim.last_truth["humans"].col("fatigue"), tables.fatigue(hours))
 
 
 def test_ata_reconstruct_outputs_reach_the_policies():

@@ -108,7 +108,7 @@ def run_epochs(mission_path: Path, n: int):
     seen = []
     for _ in range(n):
         sim.step_epoch()
-        seen.append((sim.last_context.truth, sim.last_context.observed))
+        seen.append((sim.last_truth, sim.last_context.observed))
     return seen
 
 

@@ -46,7 +46,7 @@ def build(level: str | None, extra: list[str] = (), batch: int = B, epochs: int 
     for _ in range(epochs):
         sim.step_epoch()
         ctx = sim.last_context
-        frames.append((ctx.truth.copy(), ctx.observed.copy(), sim.sim.now - 60.0,
+        frames.append((sim.last_truth.copy(), ctx.observed.copy(), sim.sim.now - 60.0,
                        sim.sim.group("tasks").capture_time.copy()))
     return sim, setup, frames
 

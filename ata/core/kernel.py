@@ -91,6 +91,9 @@ class Simulation:
         self.sim.slot_call = self._callers
         self.inherent: Observation | None = None
         self.last_context: DecisionContext | None = None
+        self.last_truth: Observation | None = None
+        """The true S of the epoch begun last: never in a policy's context; a teacher that
+        needs it (supervised training of reconstructors) reads it from the Simulation."""
         self._pending: DecisionContext | None = None   # the context of an epoch begun, not ended
 
     @property
@@ -111,7 +114,7 @@ class Simulation:
         return DecisionContext(epoch=sim.epoch, time=sim.now, sizes=sim.sizes, clock=sim.clock,
                                inherent=self.inherent, observed=observed, reconstructed=recon,
                                previous=sim.allocation, reallocatable=realloc, rng=sim.rng,
-                               truth=truth, params=sim.params)
+                               params=sim.params)
 
     def _check(self, alloc: Any, slot: str) -> Allocation:
         sim = self.sim
@@ -162,6 +165,7 @@ class Simulation:
         hook.ata_reconstruct(sim=sim, obs=observed, inherent=self.inherent, out=recon)
         ctx = self._context(observed, truth, recon)
         self.last_context = self._pending = ctx
+        self.last_truth = truth
         return ctx
 
     def decide(self, ctx: DecisionContext) -> tuple[Any, np.ndarray | None]:

@@ -248,7 +248,6 @@ class DecisionContext:
     previous: Allocation | None         # the allocation in force; None at t = 0
     reallocatable: np.ndarray           # (B, P) bool: tasks whose triple may change now
     rng: BatchRNG
-    truth: Observation | None = None    # the true S, for supervised training only
     params: dict[str, Any] = field(default_factory=dict)
 
     def take(self, rows: np.ndarray) -> "DecisionContext":
@@ -260,5 +259,4 @@ class DecisionContext:
                                observed=sub(self.observed),
                                reconstructed={k: v[rows] for k, v in self.reconstructed.items()},
                                previous=sub(self.previous), reallocatable=self.reallocatable[rows],
-                               rng=self.rng.subset(rows), truth=sub(self.truth),
-                               params=self.params)
+                               rng=self.rng.subset(rows), params=self.params)

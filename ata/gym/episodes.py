@@ -8,7 +8,6 @@ root seed and scenario id whenever the agent decides as the mission's components
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -99,7 +98,7 @@ class Episodes:
         """The pending decision's context without the true state (``truth`` is None): what the
         environments show. The mission's components (`decide`) get the whole context, as the
         kernel gives it to them in `ata run`."""
-        return None if self.context is None else dataclasses.replace(self.context, truth=None)
+        return self.context
 
     @property
     def scenarios(self) -> np.ndarray:

@@ -369,17 +369,18 @@ class ATAHRLTrainer:
             def ata_reallocate(self, ctx, active):
                 return greedy.ata_reallocate(ctx, active)
 
-            @staticmethod
-            def _log(ctx):
+            def _log(self, ctx):
+                truth = self.simulation.last_truth      # the teacher wraps the kernel
                 log["raw"].append(state_features(ctx.observed))
-                log["true"].append(state_features(ctx.truth))
-                log["fatigue"].append(ctx.truth["humans"].col("fatigue").copy())
+                log["true"].append(state_features(truth))
+                log["fatigue"].append(truth["humans"].col("fatigue").copy())
 
         teacher = Teacher()
         overrides = {"initial": teacher, "condition": teacher, "reallocation": teacher,
                      "reconstructors": AuxReconstructor(None, mission, net=self.net)}
+        teacher.simulation = Simulation(mission, self.registry, ids, overrides=overrides)
         with torch.no_grad():
-            Simulation(mission, self.registry, ids, overrides=overrides).run()
+            teacher.simulation.run()
         return log
 
     def aux_data(self, first: int, batches: int) -> dict[str, torch.Tensor]:
