@@ -377,3 +377,16 @@ def test_a_reallocation_cancels_a_robots_wait_for_its_old_navigator():
         ("reallocate", 2, 1, 0)])
     np.testing.assert_array_equal(sim.sim.record.allocations[0, :3, 1],
                                   [[1, 0, -1], [1, -1, -1], [1, -1, -1]])
+
+
+def test_reallocatable_is_the_and_of_every_models_restriction():
+    from ata.core.state import Observation
+    obs = Observation()
+    assert obs.reallocatable is None                      # no model has restricted it
+    obs.restrict_reallocation(np.array([[True, True, False]]))
+    obs.restrict_reallocation(np.array([[True, False, True]]))
+    np.testing.assert_array_equal(obs.reallocatable, [[True, False, False]])
+    copy = obs.copy()
+    copy.restrict_reallocation(np.array([[False, False, False]]))
+    np.testing.assert_array_equal(obs.reallocatable, [[True, False, False]])   # untouched
+    np.testing.assert_array_equal(obs.take(np.array([0])).reallocatable, [[True, False, False]])

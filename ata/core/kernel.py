@@ -108,7 +108,7 @@ class Simulation:
     def _context(self, observed: Observation | None, truth: Observation | None,
                  recon: dict[str, np.ndarray]) -> DecisionContext:
         sim = self.sim
-        realloc = truth.extras.get("reallocatable") if truth is not None else None
+        realloc = truth.reallocatable if truth is not None else None
         if realloc is None:
             realloc = np.ones((sim.batch_size, sim.sizes.tasks), dtype=bool)
         return DecisionContext(epoch=sim.epoch, time=sim.now, sizes=sim.sizes, clock=sim.clock,

@@ -78,11 +78,21 @@ class EntityTable:
 
 
 class Observation(dict):
-    """Entity tables by group name ("humans", "robots", "tasks"), plus named extra arrays."""
+    """Entity tables by group name ("humans", "robots", "tasks"), plus named extra arrays, and
+    the declared field ``reallocatable``: (B, P) bool, the tasks whose triple may change now
+    (None until a model restricts it: then every task may)."""
 
     def __init__(self, *args: Any, **kwargs: Any):
         super().__init__(*args, **kwargs)
         self.extras: dict[str, np.ndarray] = {}
+        self.reallocatable: np.ndarray | None = None
+
+    def restrict_reallocation(self, allowed: np.ndarray) -> None:
+        """A model's say on which tasks may be reallocated now: (B, P) bool, combined with the
+        other models' by logical and."""
+        allowed = np.asarray(allowed, dtype=bool)
+        self.reallocatable = allowed if self.reallocatable is None \
+            else self.reallocatable & allowed
 
     def add(self, group: str, names: Iterable[str], features: np.ndarray,
             mask: np.ndarray | None = None) -> EntityTable:
@@ -93,12 +103,14 @@ class Observation(dict):
     def copy(self) -> "Observation":
         out = Observation({k: v.copy() for k, v in self.items()})
         out.extras = {k: v.copy() for k, v in self.extras.items()}
+        out.reallocatable = None if self.reallocatable is None else self.reallocatable.copy()
         return out
 
     def take(self, rows: np.ndarray) -> "Observation":
         """The observation of a sub-batch of scenarios."""
         out = Observation({k: v.take(rows) for k, v in self.items()})
         out.extras = {k: v[rows] for k, v in self.extras.items()}
+        out.reallocatable = None if self.reallocatable is None else self.reallocatable[rows]
         return out
 
 

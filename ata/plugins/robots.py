@@ -120,8 +120,7 @@ class RobotModel:
         committed = np.zeros((sim.batch_size, sim.sizes.tasks), dtype=bool)
         b, rr = np.nonzero(np.isfinite(r.leg_start) & (r.target >= 0))
         committed[b, r.target[b, rr]] = True
-        realloc = obs.extras.get("reallocatable")
-        obs.extras["reallocatable"] = ~committed if realloc is None else realloc & ~committed
+        obs.restrict_reallocation(~committed)
 
     @hookimpl
     def ata_allocation_changed(self, sim: SimState, changed: np.ndarray,

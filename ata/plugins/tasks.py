@@ -73,8 +73,7 @@ class PoiTaskModel:
                           np.where(revealed, t.true_kind, t.est_kind),
                           np.where(revealed, t.true_diff, t.est_diff)], axis=-1)
         obs.add("tasks", TASK_STATE, feats.astype(np.float64))
-        realloc = obs.extras.get("reallocatable")
-        obs.extras["reallocatable"] = ~captured if realloc is None else realloc & ~captured
+        obs.restrict_reallocation(~captured)
 
     @hookimpl
     def ata_epoch_end(self, sim: SimState, epoch: int) -> None:
