@@ -9,7 +9,7 @@ Two kinds of plugin take part:
   for each batch from the mission file and registers into that batch's plugin manager. They
   implement the phase hooks below. Each phase hook is called once per phase for the whole batch;
   implementations run in mission order (task model, human model, robot model, routing,
-  injectors in their listed order, reconstructors, then the policies).
+  perturbations, injectors in their listed order, reconstructors, then the policies).
 
 The decision hooks (``ata_initial_allocation``, ``ata_should_reallocate``, ``ata_reallocate``)
 and the routing hook (``ata_next_targets``) are called only on the one component chosen for that

@@ -26,6 +26,9 @@ from ata.core.kernel import Simulation
 from ata.core.mission import SLOTS, Mission, validate
 from ata.core.registry import collect_components, get_plugin_manager
 
+LIST_SLOT_BASE = {"perturbations": ["attribute_change", "robot_failure"],
+                  "injectors": ["fatigue_noise", "latency"], "reconstructors": []}
+"""A component of a list slot is checked after these built-ins."""
 SLOT_OF_KIND = {s.kind: s.name for s in reversed(SLOTS)}
 """The slot a component of each kind is checked in (a policy's: the first, initial)."""
 
@@ -51,10 +54,8 @@ def _mission(kind: str, name: str, factory: Callable[..., Any], settings: dict |
                                        "horizon_s": 600.0, "uncertainty": "high",
                                        **(mission_keys or {})},
                            "components": {}}
-    if slot in ("injectors", "reconstructors"):
-        base = ["fatigue_noise", "attribute_change", "robot_failure", "latency"] \
-            if slot == "injectors" else []
-        raw["components"][slot] = base + [name]
+    if slot in LIST_SLOT_BASE:
+        raw["components"][slot] = LIST_SLOT_BASE[slot] + [name]
     elif kind == "policy":
         # a policy fills the slots whose hooks it implements; built-ins fill the others
         initial = hasattr(factory, "ata_initial_allocation")

@@ -17,8 +17,8 @@ from ata.testing import check_component
 
 @pytest.mark.parametrize("kind, factory, settings", [
     ("injector", FatigueNoise, {"variance": 0.3}),
-    ("injector", AttributeChange, {"probability": 0.5}),
-    ("injector", RobotFailure, {"probability": 0.5}),
+    ("perturbation", AttributeChange, {"probability": 0.5}),
+    ("perturbation", RobotFailure, {"probability": 0.5}),
     ("injector", Latency, {"probability": 0.5}),
     ("policy", GreedyPolicy, None),
     ("policy", RandomPolicy, None),

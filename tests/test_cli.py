@@ -27,7 +27,7 @@ batch_size = 3
 
 BUILTIN_COMPONENTS = {
     "task_model:poi", "human_model:human", "robot_model:robot", "routing:nearest",
-    "injector:fatigue_noise", "injector:attribute_change", "injector:robot_failure",
+    "injector:fatigue_noise", "perturbation:attribute_change", "perturbation:robot_failure",
     "injector:latency", "reconstructor:identity", "policy:greedy", "policy:random",
     "condition:never", "condition:always", "condition:on_event",
 }
@@ -370,3 +370,11 @@ def test_train_into_the_folder_of_an_old_run_is_refused(cli, tmp_path):
     assert_user_error(result, f"--out: {old} holds a training run already (best.pt, log.csv): "
                               f"resume it with --resume {old}, or choose another folder")
     assert (old / "best.pt").read_bytes() == b"x"
+
+
+def test_a_perturbation_listed_as_an_injector_is_pointed_to_its_slot(cli, tiny):
+    assert_user_error(cli("check", tiny, "--set",
+                          "components.injectors=['fatigue_noise', 'attribute_change']"),
+                      "[components] key 'injectors': unknown injector 'attribute_change'",
+                      "'attribute_change' is registered as a perturbation, which goes in another "
+                      "[components] slot")

@@ -94,8 +94,9 @@ def test_level_table_resolves_into_the_injectors(level):
     sim = Simulation(s.mission, s.registry, np.arange(2))
     plug = sim.pm.get_plugin
     assert plug("injectors:fatigue_noise").variance == expected[0]
-    for name in ("attribute_change", "robot_failure", "latency"):
-        assert plug(f"injectors:{name}").p == expected[1]
+    for slot, name in (("perturbations", "attribute_change"), ("perturbations", "robot_failure"),
+                       ("injectors", "latency")):
+        assert plug(f"{slot}:{name}").p == expected[1]
 
 
 # --- fatigue noise ------------------------------------------------------------------------------
@@ -282,8 +283,8 @@ def test_per_injector_settings_override_level():
     plug = sim.pm.get_plugin
     assert plug("injectors:latency").p == 0.5
     assert plug("injectors:fatigue_noise").variance == 0.3
-    assert plug("injectors:attribute_change").p == 0.6
-    assert plug("injectors:robot_failure").p == 0.1         # still the level's p
+    assert plug("perturbations:attribute_change").p == 0.6
+    assert plug("perturbations:robot_failure").p == 0.1         # still the level's p
     # latency at 0.5, not low's 0.1
     stale = np.concatenate([frames[k][1].extras["stale_robots"] for k in (1, 2)])
     check_rate(int(stale.sum()), stale.size, 0.5, [0.1], "latency override")
@@ -308,7 +309,7 @@ def test_robot_failure_setting_and_custom_level():
     plug = sim.pm.get_plugin
     assert plug("injectors:fatigue_noise").variance == 0.02
     assert plug("injectors:latency").p == 0.3
-    assert plug("injectors:robot_failure").p == 0.7
+    assert plug("perturbations:robot_failure").p == 0.7
     fails = np.isfinite(sim.sim.group("robots").fail_time)
     check_rate(int(fails.sum()), fails.size, 0.7, [0.3], "robot failure override")
     t = sim.sim.group("tasks")

@@ -67,8 +67,12 @@ class ComponentSlots:
     human_model: str = param("human", help="human performance, fatigue, workload, SA")
     robot_model: str = param("robot", help="robot motion, image quality, capture, onboard P_rc")
     routing: str = param("nearest", help="order in which a robot visits its POIs")
-    injectors: list[str] = param(["fatigue_noise", "attribute_change", "robot_failure",
-                                  "latency"], help="uncertainty injectors, applied in order")
+    perturbations: list[str] = param(["attribute_change", "robot_failure"],
+                                     help="events drawn at set-up that change the true state "
+                                     "(task attribute changes, robot failures)")
+    injectors: list[str] = param(["fatigue_noise", "latency"],
+                                 help="uncertainty injectors: they corrupt the observation, in "
+                                 "order")
     reconstructors: list[str] = param(["identity"], help="state reconstructors")
     initial: str = param("greedy", help="initial allocation policy (t = 0)")
     condition: str = param("on_event", help="condition policy: when to reallocate")
@@ -90,7 +94,8 @@ class Slot:
 
 SLOTS = (Slot("task_model", "task_model"), Slot("human_model", "human_model"),
          Slot("robot_model", "robot_model"), Slot("routing", "routing", "ata_next_targets"),
-         Slot("injectors", "injector"), Slot("reconstructors", "reconstructor"),
+         Slot("perturbations", "perturbation"), Slot("injectors", "injector"),
+         Slot("reconstructors", "reconstructor"),
          Slot("initial", "policy", "ata_initial_allocation"),
          Slot("condition", "condition", "ata_should_reallocate"),
          Slot("reallocation", "policy", "ata_reallocate"))

@@ -20,8 +20,8 @@ import pluggy
 from ata import hookspecs
 from ata.core.errors import MissionError
 
-KINDS = ("task_model", "human_model", "robot_model", "routing", "injector", "reconstructor",
-         "policy", "condition", "trainer")
+KINDS = ("task_model", "human_model", "robot_model", "routing", "perturbation", "injector",
+         "reconstructor", "policy", "condition", "trainer")
 """Component kinds. A ``policy`` may fill the initial and the reallocation slot; a ``trainer``
 is built by `ata train` only (``ata.training``)."""
 
@@ -98,6 +98,10 @@ class Register:
             hint = ""
             if name in OPTIONAL_PLUGINS:
                 hint = f"; it comes with the optional plugin {name!r} (--plugins {name})"
+            other = [k for k, n in self.components if n == name]
+            if other:
+                hint = (f"; {name!r} is registered as a {other[0]}, which goes in another "
+                        "[components] slot")
             raise MissionError(where, None, f"unknown {kind} {name!r}; registered: {known} "
                                f"(see: ata plugins){hint}") from None
 

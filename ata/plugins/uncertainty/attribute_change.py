@@ -47,4 +47,4 @@ class AttributeChange:
 
 @hookimpl
 def ata_register_components(register) -> None:
-    register("injector", "attribute_change", AttributeChange)
+    register("perturbation", "attribute_change", AttributeChange)

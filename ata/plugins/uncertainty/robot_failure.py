@@ -34,4 +34,4 @@ class RobotFailure:
 
 @hookimpl
 def ata_register_components(register) -> None:
-    register("injector", "robot_failure", RobotFailure)
+    register("perturbation", "robot_failure", RobotFailure)
