@@ -8,12 +8,12 @@ Two kinds of plugin take part:
 * *Components* (a human model, an injector, a policy ...) are objects that the kernel creates
   for each batch from the mission file and registers into that batch's plugin manager. They
   implement the phase hooks below. Each phase hook is called once per phase for the whole batch;
-  implementations run in mission order (task model, human model, robot model, routing,
-  perturbations, injectors in their listed order, reconstructors, then the policies).
+  implementations run in mission order (task model, human model, robot model, perturbations,
+  injectors in their listed order, reconstructors, then the policies).
 
 The decision hooks (``ata_initial_allocation``, ``ata_should_reallocate``, ``ata_reallocate``)
-and the routing hook (``ata_next_targets``) are called only on the one component chosen for that
-slot.
+are called only on the one component chosen for their slot. The order in which a robot visits
+its POIs is not a hook: it is a setting of the robot model (``[robot] routing``).
 """
 
 from __future__ import annotations
@@ -126,15 +126,6 @@ def ata_trained_on() -> list[tuple[int, int, int]]:
 
 
 # --- tick: every tick_s seconds -----------------------------------------------------------------
-
-@hookspec(firstresult=True)
-def ata_next_targets(sim: "SimState", free: np.ndarray) -> np.ndarray:
-    """Return each free robot's next POI, (B, R) int, -1 for none. Called on the routing
-    component only, by the robot model through ``sim.slot_call["routing"]``.
-
-    :param free: (B, R) bool, the robots that need a target now.
-    """
-
 
 @hookspec
 def ata_advance(sim: "SimState", t0: float, t1: float) -> None:

@@ -26,7 +26,7 @@ batch_size = 3
 """
 
 BUILTIN_COMPONENTS = {
-    "task_model:poi", "human_model:human", "robot_model:robot", "routing:nearest",
+    "task_model:poi", "human_model:human", "robot_model:robot",
     "injector:fatigue_noise", "perturbation:attribute_change", "perturbation:robot_failure",
     "injector:latency", "reconstructor:identity", "policy:greedy", "policy:random",
     "condition:never", "condition:always", "condition:on_event",
@@ -378,3 +378,9 @@ def test_a_perturbation_listed_as_an_injector_is_pointed_to_its_slot(cli, tiny):
                       "[components] key 'injectors': unknown injector 'attribute_change'",
                       "'attribute_change' is registered as a perturbation, which goes in another "
                       "[components] slot")
+
+
+def test_routing_in_components_is_pointed_to_the_robot_model(cli, tiny):
+    assert_user_error(cli("check", tiny, "--set", "components.routing=nearest"),
+                      "[components] key 'routing': routing is a setting of the robot model: "
+                      "write it as [robot] routing (see: ata plugins --verbose)")

@@ -385,61 +385,17 @@ def test_ata_allocation_changed_gets_the_changed_tasks():
 
 # --- tick --------------------------------------------------------------------------------------
 
-class StayHome:
-    """Routing that sends no robot anywhere; remembers the free masks it was asked about."""
-
-    def __init__(self):
-        self.free: list[np.ndarray] = []
-
-    @hookimpl
-    def ata_next_targets(self, sim, free):
-        self.free.append(free.copy())
-        return np.full(free.shape, -1)
-
-
-def test_ata_next_targets_is_called_on_the_routing_component_only():
-    routing = StayHome()
-
-    class Bystander:
-        """Not the routing component: its ata_next_targets must never be called."""
-
-        @hookimpl
-        def ata_next_targets(self, sim, free):
-            raise AssertionError("called on a component that is not the routing one")
-
-    registry = registry_with(BASE, ("routing", "stay_home", lambda s, m: routing),
-                             ("injector", "bystander", component(Bystander)))
-    sim = simulation(registry, routing="stay_home", injectors=["bystander"])
-    record = sim.run()
-    assert len(routing.free) >= 1
-    assert all(f.shape == (2, 2) and f.dtype == bool for f in routing.free)
-    assert routing.free[0].all()                              # at t = 0 every robot is free
-    assert np.isinf(sim.sim.group("tasks").capture_time).all()   # nobody went anywhere
-    assert record.total.tolist() == [0.0, 0.0]
-
-
-def test_ata_next_targets_drives_the_robots():
-    class FirstOpen:
-        @hookimpl
-        def ata_next_targets(self, sim, free):
-            t = sim.group("tasks")
-            mine = sim.allocation.robot[:, None, :] == np.arange(sim.sizes.robots)[None, :, None]
-            heading = np.zeros(t.capture_time.shape, dtype=bool)
-            r = sim.group("robots")
-            b, rr = np.nonzero(r.target >= 0)
-            heading[b, r.target[b, rr]] = True
-            open_ = mine & ~(np.isfinite(t.capture_time) | heading)[:, None, :]
-            first = np.where(open_.any(-1), open_.argmax(-1), -1)
-            return np.where(free, first, -1)
-
-    registry = registry_with(BASE, ("routing", "first_open", component(FirstOpen)))
-    sim = simulation(registry, routing="first_open", mission={"horizon_s": 1800.0})
-    sim.run()
-    captured = np.isfinite(sim.sim.group("tasks").capture_time)
-    assert captured.any()
-    # robot 0 has every task and visits them in index order: captured tasks are a prefix
-    for row in captured:
-        assert row.tolist() == sorted(row.tolist(), reverse=True)
+def test_routing_is_a_setting_of_the_robot_model():
+    from ata.plugins.routing import ROUTINGS, nearest
+    registry = registry_with(BASE)
+    sim = simulation(registry)
+    model = sim.pm.get_plugin("robot_model:robot")
+    assert model.next_targets is nearest and set(ROUTINGS) == {"nearest"}
+    raw = {"mission": dict(SMALL), "robot": {"routing": "farthest"},
+           "components": {"initial": "to_robot_0", "reallocation": "to_robot_0"}}
+    with pytest.raises(MissionError, match=r"\[robot\] key 'routing': 'farthest' is not "
+                                           r"allowed; choose one of 'nearest'"):
+        validate(raw, registry)
 
 
 def test_ata_advance_covers_the_horizon_tick_by_tick():
@@ -465,12 +421,11 @@ def test_ata_epoch_end_records_each_epoch():
         def ata_epoch_end(self, sim, epoch):
             sim.record.r_perf[:, epoch] += 10.0 * (epoch + 1)
 
-    sim = simulation(registry_with(BASE, ("injector", "points", component(Points)),
-                                   ("routing", "stay_home", lambda s, m: StayHome())),
-                     injectors=["points"], routing="stay_home")
-    record = sim.run()
-    assert record.r_perf.tolist() == [[10.0, 20.0], [10.0, 20.0]]
-    assert record.total.tolist() == [30.0, 30.0]
+    plain = simulation(registry_with(BASE)).run()
+    record = simulation(registry_with(BASE, ("injector", "points", component(Points))),
+                        injectors=["points"]).run()
+    assert (record.r_perf - plain.r_perf).tolist() == [[10.0, 20.0], [10.0, 20.0]]
+    assert (record.total - plain.total).tolist() == [30.0, 30.0]
 
 
 def test_ata_episode_end_metrics_reach_the_results():

@@ -37,7 +37,7 @@ def test_the_hooks_are_the_documented_set():
     assert HOOKS == sorted([
         "ata_register_components", "ata_setup", "ata_inherent", "ata_observe", "ata_inject",
         "ata_reconstruct", "ata_initial_allocation", "ata_should_reallocate", "ata_reallocate",
-        "ata_allocation_changed", "ata_trained_on", "ata_next_targets", "ata_advance",
+        "ata_allocation_changed", "ata_trained_on", "ata_advance",
         "ata_epoch_end", "ata_episode_end"])
 
 
@@ -129,11 +129,7 @@ class Spy:
 
 
 class Deciders(Spy):
-    """Fills the decision and routing slots, counting their calls."""
-
-    def __init__(self, routing):
-        super().__init__()
-        self.routing = routing
+    """Fills the decision slots, counting their calls."""
 
     @hookimpl
     def ata_initial_allocation(self, ctx):
@@ -152,24 +148,18 @@ class Deciders(Spy):
         self._count("ata_reallocate")
         return ctx.previous
 
-    @hookimpl
-    def ata_next_targets(self, sim, free):
-        self._count("ata_next_targets")
-        return self.routing.ata_next_targets(sim=sim, free=free)
-
 
 def test_the_kernel_calls_every_phase_hook_as_often_as_it_says():
     from ata.core.kernel import Simulation
     from ata.experiment.runner import BASELINE_MISSION, load_session
-    from ata.plugins.routing import NearestRouting
 
     session = load_session(str(BASELINE_MISSION), [
         "mission.setting='custom'", "mission.humans=2", "mission.robots=2", "mission.tasks=6",
         "mission.horizon_s=600.0", "mission.scenarios=2", "mission.batch_size=2"])
     clock = session.mission.clock
-    spy, deciders = Spy(), Deciders(NearestRouting(None, session.mission))
+    spy, deciders = Spy(), Deciders()
     overrides = {"injectors": spy, "initial": deciders, "condition": deciders,
-                 "reallocation": deciders, "routing": deciders}
+                 "reallocation": deciders}
     Simulation(session.mission, session.registry, [0, 1], overrides=overrides).run()
     T, ticks = clock.n_epochs, clock.n_ticks
     assert spy.calls == {"ata_setup": 1, "ata_inherent": 1, "ata_observe": T, "ata_inject": T,
@@ -178,7 +168,6 @@ def test_the_kernel_calls_every_phase_hook_as_often_as_it_says():
     assert deciders.calls["ata_initial_allocation"] == 1
     assert deciders.calls["ata_should_reallocate"] == T - 1      # every epoch after the first
     assert deciders.calls["ata_reallocate"] == len(range(2, T, 2))   # when it said yes
-    assert deciders.calls["ata_next_targets"] >= 1
     # the start-up hook and ata_trained_on (asked by `ata eval`) are tested where they are used
     assert set(spy.calls) | set(deciders.calls) == set(HOOKS) - {
         "ata_register_components", "ata_trained_on"}

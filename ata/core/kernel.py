@@ -88,7 +88,6 @@ class Simulation:
                                    f"slot: it implements no {hook_name}", file=mission.source)
             self._callers[slot] = self.pm.subset_hook_caller(
                 hook_name, remove_plugins=[c for c in everyone if c is not component])
-        self.sim.slot_call = self._callers
         self.inherent: Observation | None = None
         self.last_context: DecisionContext | None = None
         self.last_truth: Observation | None = None

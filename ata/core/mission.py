@@ -66,7 +66,6 @@ class ComponentSlots:
     task_model: str = param("poi", help="POIs: positions, kinds, difficulties, scoring")
     human_model: str = param("human", help="human performance, fatigue, workload, SA")
     robot_model: str = param("robot", help="robot motion, image quality, capture, onboard P_rc")
-    routing: str = param("nearest", help="order in which a robot visits its POIs")
     perturbations: list[str] = param(["attribute_change", "robot_failure"],
                                      help="events drawn at set-up that change the true state "
                                      "(task attribute changes, robot failures)")
@@ -84,7 +83,7 @@ class ComponentSlots:
 @dataclass(frozen=True)
 class Slot:
     """A slot of ``[components]``: the kind of component it takes, and, for a single-choice slot
-    whose component alone is asked (a decision, the routing), the hook called on it; list slots
+    whose component alone is asked (a decision), the hook called on it; list slots
     and the models take part in every phase hook."""
 
     name: str
@@ -93,7 +92,7 @@ class Slot:
 
 
 SLOTS = (Slot("task_model", "task_model"), Slot("human_model", "human_model"),
-         Slot("robot_model", "robot_model"), Slot("routing", "routing", "ata_next_targets"),
+         Slot("robot_model", "robot_model"),
          Slot("perturbations", "perturbation"), Slot("injectors", "injector"),
          Slot("reconstructors", "reconstructor"),
          Slot("initial", "policy", "ata_initial_allocation"),
@@ -266,6 +265,9 @@ def _validate(raw: dict[str, Any], registry: Register, source: str) -> Mission:
         settings.event_probability = level[1]
     _check_clock(settings)
 
+    if isinstance(raw.get("components"), dict) and "routing" in raw["components"]:
+        raise MissionError("[components]", "routing", "routing is a setting of the robot model: "
+                           "write it as [robot] routing (see: ata plugins --verbose)")
     slots = build_settings(ComponentSlots, raw.get("components"), "[components]")
     chosen: dict[str, Any] = {}
     for slot, kind in SLOT_KINDS.items():

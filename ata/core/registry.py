@@ -20,8 +20,8 @@ import pluggy
 from ata import hookspecs
 from ata.core.errors import MissionError
 
-KINDS = ("task_model", "human_model", "robot_model", "routing", "perturbation", "injector",
-         "reconstructor", "policy", "condition", "trainer")
+KINDS = ("task_model", "human_model", "robot_model", "perturbation", "injector", "reconstructor",
+         "policy", "condition", "trainer")
 """Component kinds. A ``policy`` may fill the initial and the reallocation slot; a ``trainer``
 is built by `ata train` only (``ata.training``)."""
 
@@ -29,7 +29,6 @@ BUILTIN_PLUGINS = (
     "ata.plugins.tasks",
     "ata.plugins.humans",
     "ata.plugins.robots",
-    "ata.plugins.routing",
     "ata.plugins.uncertainty.fatigue_noise",
     "ata.plugins.uncertainty.attribute_change",
     "ata.plugins.uncertainty.robot_failure",

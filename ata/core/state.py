@@ -223,7 +223,6 @@ class SimState:
         self.tick = 0
         self.groups: dict[str, Any] = {}
         self.allocation: Allocation | None = None
-        self.slot_call: dict[str, Any] = {}   # slot -> hook caller of its one component
         self.record = EpisodeRecord.empty(self.batch_size, clock.n_epochs, sizes.tasks)
         self.trace: list[tuple] | None = [] if trace else None
 

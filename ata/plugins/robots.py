@@ -25,6 +25,7 @@ from ata import hookimpl
 from ata.core.settings import param
 from ata.core.state import Allocation, Observation, SimState
 from ata.plugins import tables
+from ata.plugins.routing import ROUTINGS
 
 ROBOT_INHERENT = ("uav", "ugv", "speed")
 ROBOT_STATE = ("x", "y", "idleness", "working", "target")
@@ -44,6 +45,8 @@ class RobotModel:
         replan_s: float = param(10.0, min=0.0, max=3600.0,
                                 help="hold of a robot whose next target a reallocation changes "
                                      "while it is out on its route, s (0: no cost)")
+        routing: str = param("nearest", choices=tuple(ROUTINGS),
+                             help="order in which a robot visits its POIs")
 
     def __init__(self, settings: "RobotModel.Settings", mission: object):
         self.settings = settings
@@ -52,6 +55,7 @@ class RobotModel:
             raise MissionError("[robot]", "skill_speed", "needs exactly three factors (low, "
                                "medium, high skill)")
         self.skill_speed = np.asarray(settings.skill_speed, dtype=float)
+        self.next_targets = ROUTINGS[settings.routing]
 
     @hookimpl
     def ata_setup(self, sim: SimState) -> None:
@@ -143,8 +147,7 @@ class RobotModel:
             return
         after = np.where(on_leg, self._next_after_leg(sim, on_leg, sim.allocation), r.target)
         if cancel.any():
-            after = np.where(cancel, np.asarray(sim.slot_call["routing"](sim=sim, free=cancel)),
-                             after)
+            after = np.where(cancel, self.next_targets(sim, cancel), after)
         replan = out & (before != after)
         hold = self.settings.replan_s
         r.replan_hold[replan & on_leg] += hold
@@ -155,7 +158,7 @@ class RobotModel:
                     int(after[b, rr]))
 
     def _next_after_leg(self, sim: SimState, on_leg: np.ndarray, alloc: Allocation) -> np.ndarray:
-        """The routing component's choice for each robot on a leg once it has captured, under
+        """The routing's choice for each robot on a leg once it has captured, under
         `alloc`: asked as if the robot stood at its target already (its target is excluded, as
         every POI a robot heads for is)."""
         r, t = sim.group("robots"), sim.group("tasks")
@@ -164,7 +167,7 @@ class RobotModel:
         r.pos = np.where(on_leg[..., None], dest, r.pos)
         sim.allocation = alloc
         try:
-            return np.asarray(sim.slot_call["routing"](sim=sim, free=on_leg)).copy()
+            return self.next_targets(sim, on_leg).copy()
         finally:
             r.pos, sim.allocation = saved_pos, saved_alloc
 
@@ -243,9 +246,9 @@ class RobotModel:
             sim.log("capture", float(te[i]), int(b[i]), int(rr[i]), int(p[i]), int(q[i]))
 
     def _dispatch(self, sim: SimState, free: np.ndarray, t0: float) -> bool:
-        """Give each free robot its next POI from the routing component; start or queue legs."""
+        """Give each free robot its next POI from the routing; start or queue legs."""
         r, t, h = sim.group("robots"), sim.group("tasks"), sim.group("humans")
-        nxt = np.asarray(sim.slot_call["routing"](sim=sim, free=free))
+        nxt = self.next_targets(sim, free)
         got = free & (nxt >= 0)
         r.parked |= free & (nxt < 0)
         if not got.any():
