@@ -76,18 +76,12 @@ def user_errors(func: Callable) -> Callable:
         from ata.core.errors import ContractError, MissionError
         try:
             return func(*args, **kwargs)
-        except ContractError as exc:
-            err_console.print(f"[bold red]error:[/] a component broke the kernel's contract: "
-                              f"{escape(str(exc))}", highlight=False, soft_wrap=True)
-            raise typer.Exit(2) from None
-        except MissionError as exc:
+        except (ContractError, MissionError, pluggy.PluginValidationError) as exc:
+            lead = {ContractError: "a component broke the kernel's contract: ",
+                    pluggy.PluginValidationError: "a plugin failed validation: "}.get(type(exc), "")
             # escape: the message names tables as [mission], which rich would take for markup
-            err_console.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False,
+            err_console.print(f"[bold red]error:[/] {lead}{escape(str(exc))}", highlight=False,
                               soft_wrap=True)
-            raise typer.Exit(2) from None
-        except pluggy.PluginValidationError as exc:
-            err_console.print(f"[bold red]error:[/] a plugin failed validation: "
-                              f"{escape(str(exc))}", highlight=False, soft_wrap=True)
             raise typer.Exit(2) from None
 
     return wrapper
@@ -132,8 +126,8 @@ def main(version: bool = typer.Option(False, "--version", callback=_version_call
 @app.command()
 @user_errors
 def run(mission: Optional[str] = typer.Argument(
-            None, metavar="MISSION", help="Mission file (TOML). Default: the built-in mission, setting (a), "
-                       "medium uncertainty."),
+            None, metavar="MISSION", help="Mission file (TOML). Default: the built-in "
+                                          "mission, setting (a), medium uncertainty."),
         set_: Optional[List[str]] = SetOption,
         plugins: Optional[str] = PluginsOption,
         out: Optional[Path] = typer.Option(None, "--out", "-o", metavar="DIR",
@@ -151,13 +145,11 @@ def run(mission: Optional[str] = typer.Argument(
     from ata.experiment import runner
     from ata.experiment.runlog import RunLog
 
-    from ata.core.kernel import Simulation
-
     session = runner.load_session(mission, set_ or [], _split(plugins))
     m = session.mission
     # the components are built (checkpoints read) and the output folder is made and checked
     # before any scenario runs
-    Simulation(m.replace(scenarios=1), session.registry, [m.settings.first_scenario])
+    runner.build_once(m, session.registry)
     out_dir = runner.prepare_out_dir(out) if out else runner.default_out_dir(m)
     chunks = runner.chunks_of(m, workers or m.settings.workers)
     log = RunLog(out_dir, runner.plan_key(session, chunks), len(chunks), force=force,
@@ -217,8 +209,9 @@ def render_summary(session, result) -> None:
 @app.command()
 @user_errors
 def train(mission: Optional[str] = typer.Argument(
-              None, metavar="MISSION", help="Training mission (TOML) naming a trainer in \\[components]. Default: "
-                         "the built-in training mission of the --plugins given."),
+              None, metavar="MISSION",
+              help="Training mission (TOML) naming a trainer in \\[components]. Default: the "
+                   "built-in training mission of the --plugins given."),
           set_: Optional[List[str]] = SetOption,
           plugins: Optional[str] = typer.Option(
               None, "--plugins", metavar="NAME[,NAME]",
@@ -295,12 +288,10 @@ def check(mission: str = typer.Argument(..., metavar="MISSION", help="Mission fi
           show: bool = typer.Option(False, "--show", help="Print the resolved mission.")) -> None:
     """Validate a mission file without running it."""
     from ata.experiment import runner
-    from ata.core.kernel import Simulation
 
     session = runner.load_session(mission, set_ or [], _split(plugins))
-    # build the components once, on one scenario: a component that cannot fill its slot fails
-    Simulation(session.mission.replace(scenarios=1), session.registry, [0])
     m = session.mission
+    runner.build_once(m, session.registry)   # a component that cannot fill its slot fails
     console.print(f"[green]ok[/]: {escape(mission)}: setting {m.settings.setting} "
                   f"({m.sizes.humans} humans, {m.sizes.robots} robots, {m.sizes.tasks} POIs), "
                   f"{m.settings.scenarios} scenarios, {m.settings.uncertainty} uncertainty "

@@ -23,12 +23,12 @@ import numpy as np
 from ata import hookimpl
 from ata.core.errors import ContractError
 from ata.core.kernel import Simulation
-from ata.core.mission import SLOTS, Mission, validate
+from ata.core.mission import SLOTS, ComponentSlots, Mission, validate
 from ata.core.registry import collect_components, get_plugin_manager
 
-LIST_SLOT_BASE = {"perturbations": ["attribute_change", "robot_failure"],
-                  "injectors": ["fatigue_noise", "latency"], "reconstructors": []}
-"""A component of a list slot is checked after these built-ins."""
+LIST_SLOT_BASE = {"perturbations": ComponentSlots().perturbations,
+                  "injectors": ComponentSlots().injectors, "reconstructors": []}
+"""A component of a list slot is checked after these built-ins (the mission defaults)."""
 SLOT_OF_KIND = {s.kind: s.name for s in reversed(SLOTS)}
 """The slot a component of each kind is checked in (a policy's: the first, initial)."""
 

@@ -125,8 +125,9 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
 
-    n_epochs = load_session(str(MISSION)).mission.clock.n_epochs
-    norm = VecNormalize(Batched(CentralisedVectorEnv(MISSION, num_envs=args.envs), n_epochs),
+    session = load_session(str(MISSION))
+    n_epochs = session.mission.clock.n_epochs
+    norm = VecNormalize(Batched(CentralisedVectorEnv(session, num_envs=args.envs), n_epochs),
                         gamma=1.0)
     model = MaskablePPO("MultiInputPolicy", norm, n_steps=60, batch_size=480, gamma=1.0,
                         ent_coef=0.01, seed=args.seed, verbose=0)

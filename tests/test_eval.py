@@ -20,6 +20,8 @@ from ata.core.errors import MissionError
 from ata.experiment.executors import ProcessExecutor, SerialExecutor
 from ata import hookimpl
 from ata.core.kernel import Simulation
+from ata.experiment.evaluate import CORE_COLUMNS
+from ata.experiment.runlog import write_csv
 from ata.experiment.runner import BASELINE_MISSION, load_session, run_mission
 from ata.plugins.policies import milp as M
 
@@ -350,8 +352,6 @@ def test_beat_probability():
     assert math.isnan(rep.beat_probability([], []))
 
 
-FIELDS = ["method", "setting", "uncertainty", "scenario", "seed", "score", "upper_bound",
-          "fraction_of_u", "classified_share", "reallocations", "wall_s"]
 
 
 def write_results(path: Path) -> None:
@@ -372,10 +372,7 @@ def write_results(path: Path) -> None:
                 if (method, setting, level) == ("greedy", "a", "low"):
                     block.reverse()
                 rows += block
-    with open(path, "w", newline="", encoding="utf-8") as f:
-        writer = csv.DictWriter(f, fieldnames=FIELDS)
-        writer.writeheader()
-        writer.writerows(rows)
+    write_csv(path, CORE_COLUMNS, rows)
 
 
 def test_report_table_and_probabilities(tmp_path):
@@ -438,10 +435,7 @@ def test_report_skips_absent_figures(tmp_path):
     write_results(tmp_path / "all.csv")
     with open(tmp_path / "all.csv", newline="") as f:
         rows = [r for r in csv.DictReader(f) if r["setting"] == "a" and r["method"] != "w/o.AUX"]
-    with open(tmp_path / "results.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=FIELDS)
-        writer.writeheader()
-        writer.writerows(rows)
+    write_csv(tmp_path / "results.csv", CORE_COLUMNS, rows)
     rep.write_report(tmp_path)
     assert sorted(p.name for p in tmp_path.glob("fig_*")) == ["fig_paired.png",
                                                              "fig_paired.svg",
@@ -456,10 +450,7 @@ def test_report_reads_several_evaluations_together(cli, tmp_path):
     for name, keep in (("one", lambda r: r["method"] != "greedy"),
                        ("two", lambda r: r["method"] == "greedy")):
         (tmp_path / name).mkdir()
-        with open(tmp_path / name / "results.csv", "w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=FIELDS)
-            writer.writeheader()
-            writer.writerows([r for r in rows if keep(r)])
+        write_csv(tmp_path / name / "results.csv", CORE_COLUMNS, [r for r in rows if keep(r)])
     merged = rep.summarize(rep.read_results([tmp_path / "one", tmp_path / "two"]))
     whole = rep.summarize(rep.read_results(tmp_path / "all.csv"))
     key = lambda c: (c.method, c.setting, c.level)  # noqa: E731

@@ -3,7 +3,6 @@ training run folder: the numbers against a hand computation, the files written, 
 
 from __future__ import annotations
 
-import csv
 import json
 from pathlib import Path
 
@@ -12,11 +11,11 @@ import pytest
 
 from _support import flat
 from ata.experiment import report as rep
+from ata.experiment.evaluate import CORE_COLUMNS
+from ata.experiment.runlog import write_csv
 from ata.core.errors import MissionError
 from ata.training import TrainRun
 
-FIELDS = ["method", "setting", "uncertainty", "scenario", "seed", "score", "upper_bound",
-          "fraction_of_u", "classified_share", "reallocations", "wall_s"]
 SCORES = {"ATA-HRL": [10, 20, 30, 40, 50], "greedy": [5, 20, 35, 10, 0],
           "random": [1, 2, 3, 4, 5]}
 """Per scenario 100..104 at (a, low); elsewhere shifted (below)."""
@@ -43,10 +42,7 @@ def write_results(path: Path, methods=tuple(SCORES)) -> None:
                          for i in range(5) if not (method == "random" and i == 2)]
                 rows += block[::-1] if method == "greedy" else block
     path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w", newline="", encoding="utf-8") as f:
-        writer = csv.DictWriter(f, fieldnames=FIELDS)
-        writer.writeheader()
-        writer.writerows(rows)
+    write_csv(path, CORE_COLUMNS, rows)
 
 
 # -- paired differences -------------------------------------------------------------------------
@@ -249,6 +245,8 @@ GOOD = ("method,setting,uncertainty,scenario,seed,score,upper_bound,fraction_of_
 @pytest.mark.parametrize("text, eval_rows, message", [
     (GOOD[:-20], None, "line 5 has fewer fields than the header: the file is cut short or garbled"),
     (GOOD.replace("310.0", "lots"), None, "line 3: score is 'lots', not a number"),
+    (GOOD.replace("1000,0,300.0", "1000,x,300.0"), None, "line 2: seed is 'x', not a number"),
+    (GOOD.replace("0.16", "abc"), None, "line 4: fraction_of_u is 'abc', not a number"),
     (GOOD + "random,a,low,1002,0,1,2,3,4,5\n", None,
      "line 6 has more fields than the header: the file is cut short or garbled"),
     (GOOD, 6, "holds 4 rows where eval.json says 6: the file is incomplete or was changed"),

@@ -10,9 +10,10 @@ bootstrap is `ata report`'s (2000 resamples, fixed seed), so the figures match i
 
 from __future__ import annotations
 
+import math
 import sys
 
-from ata.experiment.report import read_results, summarize
+from ata.experiment.report import md_table, read_results, summarize
 
 PAIRS = [("ATA-HRL", "greedy"), ("ATA-HRL", "ATA-HRL (learned off)"), ("ATA-HRL", "w/o.AUX"),
          ("ATA-HRL", "w/o.C"), ("AtRL-TR", "TR-POMDP"), ("ATA-HRL", "ITA-MILP"),
@@ -28,31 +29,32 @@ def main(dirs: list[str]) -> None:
     cells = {ref: {(c.method, c.setting, c.level): c for c in summarize(res, ref).cells}
              for ref in refs}
     first = cells[res.methods[0]]
-    print("| method | " + " | ".join(f"({s}) {lv}" for s, lv in groups) + " |")
-    print("|---|" + "---:|" * len(groups))
+    columns = [f"({s}) {lv}" for s, lv in groups]
+    rows = []
     for m in res.methods:
-        row = []
+        row = [m]
         for s, lv in groups:
             c = first.get((m, s, lv))
             row.append("-" if c is None else
                        f"{c.mean:.1f} [{c.low:.0f}, {c.high:.0f}] ({c.fraction_of_u:.2f} U)")
-        print(f"| {m} | " + " | ".join(row) + " |")
+        rows.append(row)
+    print("\n".join(md_table(["method", *columns], rows)))
     print()
-    print("| paired difference | " + " | ".join(f"({s}) {lv}" for s, lv in groups) + " |")
-    print("|---|" + "---:|" * len(groups))
+    rows = []
     for a, b in PAIRS:
         if a not in res.methods or b not in res.methods:
             continue
-        row = []
+        row = [f"{a} - {b}"]
         for s, lv in groups:
             c = cells[a].get((b, s, lv))
-            if c is None or c.diff[0] != c.diff[0]:      # not run, or no paired scenarios
+            if c is None or math.isnan(c.diff[0]):      # not run, or no paired scenarios
                 row.append("-")
                 continue
             mean, low, high = c.diff
             mark = "**" if low > 0 else ""
             row.append(f"{mark}{mean:+.1f} [{low:+.1f}, {high:+.1f}]{mark}")
-        print(f"| {a} - {b} | " + " | ".join(row) + " |")
+        rows.append(row)
+    print("\n".join(md_table(["paired difference", *columns], rows)))
 
 
 if __name__ == "__main__":

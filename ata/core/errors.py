@@ -1,5 +1,5 @@
-"""The errors the CLI reports as one message and exit 2: bad input (``MissionError``) and a component
-that breaks the kernel's contract (``ContractError``)."""
+"""The errors the CLI reports as one message and exit 2: bad input (``MissionError``) and a
+component that breaks the kernel's contract (``ContractError``)."""
 
 from __future__ import annotations
 

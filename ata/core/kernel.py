@@ -104,10 +104,10 @@ class Simulation:
         component = self.slot_component[slot]
         return getattr(component, "component_name", None) or type(component).__name__
 
-    def _context(self, observed: Observation | None, truth: Observation | None,
+    def _context(self, observed: Observation, truth: Observation,
                  recon: dict[str, np.ndarray]) -> DecisionContext:
         sim = self.sim
-        realloc = truth.reallocatable if truth is not None else None
+        realloc = truth.reallocatable
         if realloc is None:
             realloc = np.ones((sim.batch_size, sim.sizes.tasks), dtype=bool)
         return DecisionContext(epoch=sim.epoch, time=sim.now, sizes=sim.sizes, clock=sim.clock,

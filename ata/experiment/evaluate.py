@@ -15,7 +15,6 @@ hook, from its checkpoint), and `check_held_out` refuses a job whose scenarios m
 
 from __future__ import annotations
 
-import csv
 import json
 import os
 import re
@@ -37,8 +36,8 @@ from ata.experiment import runlog
 from ata.experiment.cache import run_cache
 from ata.experiment.executors import Executor
 from ata.experiment.heldout import EVAL_FIRST_SCENARIO
-from ata.experiment.runner import (Session, load_session, new_folder, one_worker, run_batch,
-                                   torch_one_thread)
+from ata.experiment.runner import (Session, build_once, load_session, one_worker, run_batch,
+                                   scenario_ids, stamped_folder, torch_one_thread)
 
 DEFAULT_SCENARIOS = 500
 """Scenarios per (method, setting, level) when neither the suite nor the command says."""
@@ -340,9 +339,7 @@ def _validate_job(job: Job) -> None:
     its scenarios are held out."""
     m = job.mission
     try:
-        sim = Simulation(m.replace(scenarios=1), job.session.registry,
-                         [m.settings.first_scenario])
-        check_held_out(m, sim)
+        check_held_out(m, build_once(m, job.session.registry))
     except MissionError as exc:
         raise _context(exc, job.source, job.method, job.setting, job.level) from None
 
@@ -363,8 +360,7 @@ def make_units(jobs: list[Job], chunk_size: int, cache: str | Path | None = None
                parallel: bool = False) -> list[Unit]:
     units = []
     for j, job in enumerate(jobs):
-        s = job.mission.settings
-        ids = s.first_scenario + np.arange(s.scenarios, dtype=np.int64)
+        ids = scenario_ids(job.mission)
         for start in range(0, ids.size, chunk_size):
             units.append(Unit(j, job.mission, ids[start:start + chunk_size],
                               str(cache) if cache is not None else None, parallel))
@@ -403,7 +399,7 @@ def plan_key(jobs: list[Job], chunk_size: int) -> str:
 
 
 def unit_count(jobs: list[Job], chunk_size: int) -> int:
-    return sum(-(-j.mission.settings.scenarios // chunk_size) for j in jobs)
+    return len(make_units(jobs, chunk_size))
 
 
 def evaluate(jobs: list[Job], executor: Executor, *, chunk_size: int = DEFAULT_CHUNK,
@@ -475,12 +471,7 @@ def write_eval(out_dir: str | Path, suites: list[Suite], jobs: list[Job], result
     (out / "missions").mkdir(parents=True, exist_ok=True)
     for stale in (out / "missions").glob("*.resolved.toml"):   # of an earlier plan
         stale.unlink()
-    tmp = out / "results.csv.tmp"
-    with open(tmp, "w", newline="", encoding="utf-8") as f:
-        writer = csv.DictWriter(f, fieldnames=result.columns)
-        writer.writeheader()
-        writer.writerows(result.rows)
-    os.replace(tmp, out / "results.csv")
+    runlog.write_csv(out / "results.csv", result.columns, result.rows)
     for job in jobs:
         name = f"{safe_name(job.method)}__{job.setting}__{job.level}.resolved.toml"
         (out / "missions" / name).write_text(job.mission.to_toml(), encoding="utf-8")
@@ -517,9 +508,7 @@ def _json_default(value: Any) -> Any:
 def default_out_dir(suites: list[Suite]) -> Path:
     names = [s.name for s in suites]
     label = "+".join(names) if len(names) <= 3 else "suite"
-    stamp = time.strftime("%Y%m%d-%H%M%S")
-    base = Path(os.environ.get("ATA_RUNS", "runs"))
-    return new_folder(base / f"eval-{safe_name(label)}-{stamp}")
+    return stamped_folder(f"eval-{safe_name(label)}")
 
 
 def default_cache_dir() -> Path:

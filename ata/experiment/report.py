@@ -81,8 +81,18 @@ class Results:
 
 REQUIRED = ("method", "setting", "uncertainty", "scenario", "seed", "score", "upper_bound",
             "fraction_of_u", "classified_share")
-NUMERIC = ("scenario", "score", "upper_bound")
-"""Columns every row must hold a number in."""
+TEXT_COLUMNS = ("method", "setting", "uncertainty")
+INT_COLUMNS = ("scenario", "seed")
+"""results.csv's columns of text and of integers; every other column holds numbers (blank: NaN)."""
+
+
+def _parse(column: str, text: str) -> Any:
+    """One cell of results.csv as its column's type; ValueError when it is not one."""
+    if column in TEXT_COLUMNS:
+        return text
+    if column in INT_COLUMNS:
+        return int(text)
+    return float(text) if text != "" else math.nan
 
 
 def level_key(level: str) -> tuple[int, str]:
@@ -90,7 +100,10 @@ def level_key(level: str) -> tuple[int, str]:
     return (order.index(level) if level in order else len(order), level)
 
 
-def _read_one(path: str | Path) -> tuple[list[dict[str, str]], list[str]]:
+def _read_one(path: str | Path) -> tuple[list[dict[str, Any]], list[str]]:
+    """The rows of one results.csv, each cell parsed as its column's type; one MissionError
+    naming the file and line for a file cut short, garbled, or of another row count than its
+    eval.json."""
     given = path = Path(path)
     if path.is_dir():
         path = path / "results.csv"
@@ -108,17 +121,20 @@ def _read_one(path: str | Path) -> tuple[list[dict[str, str]], list[str]]:
                            file=str(path))
     if not rows:
         raise MissionError("", None, "has no rows", file=str(path))
+    parsed = []
     for line, row in enumerate(rows, start=2):
         if None in row or any(v is None for v in row.values()):
             raise MissionError("", None, f"line {line} has {'more' if None in row else 'fewer'} "
                                f"fields than the header: the file is cut short or garbled",
                                file=str(path))
-        for column in NUMERIC:
+        typed = {}
+        for column, text in row.items():
             try:
-                float(row[column]) if column != "scenario" else int(row[column])
+                typed[column] = _parse(column, text)
             except ValueError:
-                raise MissionError("", None, f"line {line}: {column} is {row[column]!r}, not a "
+                raise MissionError("", None, f"line {line}: {column} is {text!r}, not a "
                                    "number", file=str(path)) from None
+        parsed.append(typed)
     meta = path.with_name("eval.json")
     if meta.is_file():
         try:
@@ -129,7 +145,7 @@ def _read_one(path: str | Path) -> tuple[list[dict[str, str]], list[str]]:
             raise MissionError("", None, f"holds {len(rows)} rows where eval.json says "
                                f"{planned}: the file is incomplete or was changed",
                                file=str(path))
-    return rows, list(header)
+    return parsed, list(header)
 
 
 def read_results(path: str | Path | list) -> Results:
@@ -146,19 +162,12 @@ def read_results(path: str | Path | list) -> Results:
     if len(set(keys)) != len(keys):
         raise MissionError("", None, "a (method, setting, uncertainty, scenario) appears twice "
                            "in the results read together", file=str(paths[0]))
-    rows = [{k: r.get(k, "") or "" for k in header} for r in rows]
     cols: dict[str, np.ndarray] = {}
     for name in header:
-        raw = [r[name] for r in rows]
-        if name in ("method", "setting", "uncertainty"):
-            cols[name] = np.array(raw, dtype=object)
-        elif name in ("scenario", "seed"):
-            cols[name] = np.array([int(x) for x in raw], dtype=np.int64)
-        else:
-            try:
-                cols[name] = np.array([float(x) if x != "" else math.nan for x in raw])
-            except ValueError:
-                cols[name] = np.array(raw, dtype=object)
+        # a column that one of the files read together lacks is blank (NaN) in its rows
+        raw = [r.get(name, math.nan) for r in rows]
+        cols[name] = np.array(raw, dtype=object if name in TEXT_COLUMNS
+                              else np.int64 if name in INT_COLUMNS else float)
     methods = list(dict.fromkeys(cols["method"]))
     settings = sorted(set(cols["setting"]))
     levels = sorted(set(cols["uncertainty"]), key=level_key)
@@ -338,11 +347,7 @@ def markdown(report: Report, written: list[Path] = (), paired: list[Paired] = ()
              f"scenarios where {report.reference} scores more (ties count half).", ""]
     for setting, level in report.groups():
         header, rows = table_rows(report, setting, level)
-        lines += [f"## {title(setting, level).capitalize()}", "",
-                  "| " + " | ".join(header) + " |",
-                  "|" + "|".join(["---"] + ["---:"] * (len(header) - 1)) + "|"]
-        lines += ["| " + " | ".join(r) + " |" for r in rows]
-        lines.append("")
+        lines += [f"## {title(setting, level).capitalize()}", "", *md_table(header, rows), ""]
     pngs = [p for p in written if p.suffix == ".png"]
     if pngs:
         lines += ["## Figures", "", "Each as PNG and SVG beside this file.", ""]
@@ -380,12 +385,26 @@ def _pyplot():
     return plt
 
 
-def _save(fig, out_dir: Path, stem: str) -> list[Path]:
+def md_table(header: list[str], rows: list[list[str]]) -> list[str]:
+    """A Markdown table's lines: the first column left-aligned, the others right-aligned."""
+    return (["| " + " | ".join(header) + " |",
+             "|" + "|".join(["---"] + ["---:"] * (len(header) - 1)) + "|"]
+            + ["| " + " | ".join(r) + " |" for r in rows])
+
+
+def save_figure(fig: Any, out_dir: str | Path, stem: str, *, tight: bool = True,
+                salt: str = "ata-report") -> list[Path]:
+    """`stem`.png and `stem`.svg of `fig` in `out_dir`, reproducibly (fixed SVG ids from
+    `salt`, no date): the same figure gives the same files. The paths."""
+    import matplotlib
+
     paths = []
-    for ext in ("png", "svg"):
-        path = out_dir / f"{stem}.{ext}"
-        fig.savefig(path, dpi=150, bbox_inches="tight")
-        paths.append(path)
+    with matplotlib.rc_context({"svg.hashsalt": salt}):
+        for ext in ("png", "svg"):
+            path = Path(out_dir) / f"{stem}.{ext}"
+            fig.savefig(path, dpi=150, bbox_inches="tight" if tight else None,
+                        metadata={"Date": None} if ext == "svg" else None)
+            paths.append(path)
     return paths
 
 
@@ -422,7 +441,7 @@ def figures(report: Report, out_dir: str | Path, paired: list[Paired] = ()) -> l
         ax.set_title(f"Setting {setting}")
         ax.legend(fontsize=7, ncols=min(len(methods), 4), loc="upper center",
                   bbox_to_anchor=(0.5, -0.18), frameon=False)
-        written += _save(fig, out, f"fig_setting_{setting}")
+        written += save_figure(fig, out, f"fig_setting_{setting}")
         plt.close(fig)
 
     ablations = [m for m in res.methods if m.startswith(ABLATION_PREFIX)]
@@ -451,12 +470,12 @@ def figures(report: Report, out_dir: str | Path, paired: list[Paired] = ()) -> l
             ax.set_ylabel("total team performance")
             ax.set_title(f"Ablations, setting {setting}")
             ax.legend(fontsize=7)
-        written += _save(fig, out, "fig_ablations")
+        written += save_figure(fig, out, "fig_ablations")
         plt.close(fig)
 
     if paired:
         fig = paired_figure(plt, res, paired)
-        written += _save(fig, out, "fig_paired")
+        written += save_figure(fig, out, "fig_paired")
         plt.close(fig)
     return written
 
@@ -829,10 +848,7 @@ def curves_markdown(log: TrainingLog, written: list[Path]) -> str:
              + ", ".join(f"{p or 'one phase'} (rows {b - a})" for p, a, b in log.phases) + "."
              + (f" {log.superseded} rows whose steps were logged again later (a resumed run) "
                 "are left out." if log.superseded else ""),
-             "", "| " + " | ".join(header) + " |",
-             "|" + "|".join(["---"] + ["---:"] * (len(header) - 1)) + "|"]
-    lines += ["| " + " | ".join(r) + " |" for r in rows]
-    lines.append("")
+             "", *md_table(header, rows), ""]
     pngs = [p for p in written if p.suffix == ".png"]
     if pngs:
         lines += [f"`fig_curves` (PNG and SVG beside this file): {shown}, against the step"
@@ -853,13 +869,12 @@ def write_curves(run_dir: str | Path, out_dir: str | Path | None = None,
     log = read_log(run_dir)
     out = Path(out_dir) if out_dir is not None else log.path.parent
     written: list[Path] = []
+    out.mkdir(parents=True, exist_ok=True)
     if with_figures:
         plt = _pyplot()
-        out.mkdir(parents=True, exist_ok=True)
         fig = curves_figure(plt, log, f"Training curves: {log.path.parent.name}")
-        written = _save(fig, out, "fig_curves")
+        written = save_figure(fig, out, "fig_curves")
         plt.close(fig)
-    out.mkdir(parents=True, exist_ok=True)
     path = out / "curves.md"
     path.write_text(curves_markdown(log, written), encoding="utf-8")
     return log, [path] + written

@@ -12,6 +12,7 @@ nothing holds none).
 
 from __future__ import annotations
 
+import csv
 import hashlib
 import json
 import os
@@ -52,6 +53,17 @@ def _decode(value: Any) -> Any:
     if isinstance(value, list):
         return [_decode(v) for v in value]
     return value
+
+
+def write_csv(path: Path, columns: list[str], rows: list[dict[str, Any]]) -> None:
+    """Write rows to a CSV file atomically (a temporary file, then a rename): a kill leaves the
+    old file or the new one, never half of one."""
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "w", newline="", encoding="utf-8") as f:
+        writer = csv.DictWriter(f, fieldnames=columns)
+        writer.writeheader()
+        writer.writerows(rows)
+    os.replace(tmp, path)
 
 
 def _write_atomic(path: Path, text: str) -> None:

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import contextlib
 import copy
-import csv
 import dataclasses
 import json
 import math
@@ -155,6 +154,13 @@ def run_batch(mission: Mission, registry: Register, scenario_ids: np.ndarray,
     return out
 
 
+def build_once(mission: Mission, registry: Register) -> Simulation:
+    """Build the mission's components once, on its first scenario (as `ata check` does): a
+    component that cannot fill its slot, or a checkpoint that cannot be read, fails here,
+    before any work starts."""
+    return Simulation(mission.replace(scenarios=1), registry, [mission.settings.first_scenario])
+
+
 def one_worker(mission: Mission) -> Mission:
     """A copy whose components run no process pools of their own (the executor already uses
     every core): each component setting called `workers` is set to 1. Results are unchanged."""
@@ -285,12 +291,7 @@ def write_run(out_dir: str | Path, session: Session, result: RunResult) -> Path:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rows = result.rows()
-    tmp = out / "results.csv.tmp"
-    with open(tmp, "w", newline="", encoding="utf-8") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    os.replace(tmp, out / "results.csv")
+    runlog.write_csv(out / "results.csv", list(rows[0]), rows)
     (out / "summary.json").write_text(json.dumps(summarize(result), indent=2) + "\n")
     (out / "mission.resolved.toml").write_text(session.mission.to_toml(), encoding="utf-8")
     versions = {"ata": __version__, "components": session.versions()}
@@ -299,11 +300,19 @@ def write_run(out_dir: str | Path, session: Session, result: RunResult) -> Path:
 
 
 def default_out_dir(mission: Mission, prefix: str = "") -> Path:
-    """A new folder runs/[PREFIX]NAME-TIME ($ATA_RUNS for runs), created now: two runs started in
-    the same second get NAME-TIME and NAME-TIME-2."""
-    stamp = time.strftime("%Y%m%d-%H%M%S")
-    base = Path(os.environ.get("ATA_RUNS", "runs"))
-    return new_folder(base / f"{prefix}{mission.settings.name}-{stamp}")
+    """A new folder runs/[PREFIX]NAME-TIME for a run of the mission."""
+    return stamped_folder(f"{prefix}{mission.settings.name}")
+
+
+def runs_root() -> Path:
+    """Where output folders go by default: $ATA_RUNS, else runs/."""
+    return Path(os.environ.get("ATA_RUNS", "runs"))
+
+
+def stamped_folder(label: str) -> Path:
+    """A new folder runs/LABEL-TIME, created now: two runs started in the same second get
+    LABEL-TIME and LABEL-TIME-2."""
+    return new_folder(runs_root() / f"{label}-{time.strftime('%Y%m%d-%H%M%S')}")
 
 
 def new_folder(path: Path) -> Path:

@@ -113,9 +113,10 @@ class CentralisedView:
             free, flag = np.ones((B, P), bool), [False, True]
         else:
             free, flag = episodes.context.reallocatable, [True, True]
-        current = (np.zeros((B, 1 + 3 * P), np.int64) if allocation is None
-                   else self.encode(allocation, np.zeros(B, bool)))
-        parts = [(np.arange(n) == current[:, 1 + i::3, None]) | free[..., None]
+        # the triples in force as action values (navigator and classifier shifted by one)
+        current = (np.zeros((B, P, 3), np.int64) if allocation is None
+                   else allocation.stack() + [0, 1, 1])
+        parts = [(np.arange(n) == current[..., i, None]) | free[..., None]
                  for i, n in enumerate((R, 1 + H, 1 + H))]
         per_task = np.concatenate(parts, axis=-1).reshape(B, -1)
         return np.concatenate([np.broadcast_to(np.array(flag), (B, 2)), per_task], axis=1)
@@ -161,9 +162,7 @@ class CentralisedView:
     def step(self, episodes: Episodes, actions: Any, single: bool = False) -> np.ndarray:
         """Apply a batch of actions (one action if `single`); the epoch's points (B,)."""
         allocation, flags = self.decode(actions, None if single else episodes.batch)
-        if episodes.allocation is None:
-            return episodes.step(allocation, None)
-        return episodes.step(allocation if flags.any() else None, flags)
+        return episodes.step(allocation, flags)   # the kernel ignores what the flags rule out
 
     def mission_action(self, episodes: Episodes) -> np.ndarray:
         """The actions (B, 1 + 3P) of the mission's own decision components (its ``initial``,
@@ -254,9 +253,9 @@ class CentralisedEnv(gym.Env):
 
     @property
     def context(self) -> DecisionContext | None:
-        """The kernel's `DecisionContext` of the pending decision (a batch of one), without the
-        true state (``truth`` is None): what a built-in policy would be asked with."""
-        return self._episodes.public_context
+        """The kernel's `DecisionContext` of the pending decision (a batch of one): what a
+        built-in policy would be asked with (no policy's context holds the true state)."""
+        return self._episodes.context
 
 
 class CentralisedVectorEnv(VectorEnv):
@@ -323,9 +322,9 @@ class CentralisedVectorEnv(VectorEnv):
 
     @property
     def context(self) -> DecisionContext | None:
-        """The kernel's batched `DecisionContext` of the pending decisions, without the true
-        state (see `CentralisedEnv.context`)."""
-        return self._episodes.public_context
+        """The kernel's batched `DecisionContext` of the pending decisions (see
+        `CentralisedEnv.context`)."""
+        return self._episodes.context
 
 
 def sample_masked(mask: np.ndarray, nvec: Sequence[int],

@@ -145,6 +145,6 @@ class DecentralisedParallelEnv(ParallelEnv):
 
     @property
     def context(self) -> DecisionContext | None:
-        """The kernel's `DecisionContext` of the pending decision, without the true state (see
+        """The kernel's `DecisionContext` of the pending decision (see
         `ata.gym.CentralisedEnv.context`)."""
-        return self._episodes.public_context
+        return self._episodes.context

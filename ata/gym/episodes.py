@@ -94,13 +94,6 @@ class Episodes:
         return ids.astype(np.int64)
 
     @property
-    def public_context(self) -> DecisionContext | None:
-        """The pending decision's context without the true state (``truth`` is None): what the
-        environments show. The mission's components (`decide`) get the whole context, as the
-        kernel gives it to them in `ata run`."""
-        return self.context
-
-    @property
     def scenarios(self) -> np.ndarray:
         """(B,) the scenario ids of the episode."""
         return self._running().sim.rng.scenario_ids.copy()

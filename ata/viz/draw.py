@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from ata.core.errors import MissionError
+from ata.experiment.report import save_figure
 from ata.plugins import tables
 from ata.viz.record import OUTCOMES, RIGHT, UNCLASSIFIED, UNVISITED, WRONG, Episode
 
@@ -183,6 +184,7 @@ def draw_timeline(ep: Episode, fig: Any) -> None:
         if spans:
             ax.broken_barh(spans, (y - height / 2, height), **style)
 
+    outcome = ep.outcome
     for human in range(H):
         y = y_of[("H", human)]
         bars(y, [(0.0, ep.horizon_s)], facecolors="#EEEEEE", zorder=1)
@@ -191,12 +193,10 @@ def draw_timeline(ep: Episode, fig: Any) -> None:
              hatch="////", linewidths=0.0, zorder=2)
         bars(y, [(w.begin, w.end) for w in items if w.kind == "nav"], facecolors=GREEN,
              zorder=2)
-        for code, colour in ((RIGHT, BLUE), (WRONG, VERMILLION)):
-            bars(y, [(w.begin, w.end) for w in items if w.kind == "classify"
-                     and np.isfinite(ep.classified_at[w.poi]) and ep.outcome[w.poi] == code],
+        for code, colour in ((RIGHT, BLUE), (WRONG, VERMILLION), (UNCLASSIFIED, YELLOW)):
+            bars(y, [(w.begin, w.end) for w in items
+                     if w.kind == "classify" and outcome[w.poi] == code],
                  facecolors=colour, zorder=2)
-        bars(y, [(w.begin, w.end) for w in items if w.kind == "classify"
-                 and not np.isfinite(ep.classified_at[w.poi])], facecolors=YELLOW, zorder=2)
         bars(y, [(w.begin, w.end) for w in items if w.kind == "rebrief"], facecolors=PURPLE,
              zorder=2)
         busy = _covered([(w.start, min(w.end, ep.horizon_s)) for w in items])
@@ -331,9 +331,9 @@ def draw_humans(ep: Episode, fig: Any) -> None:
 
 def write_figures(ep: Episode, out_dir: str | Path) -> list[Path]:
     """Draw the three pictures of `ep` into `out_dir`, each as PNG and SVG; the paths."""
+    Figure = figure_class()              # no matplotlib: one clear message first
     import matplotlib
 
-    Figure = figure_class()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     H, R = ep.skill.size, ep.robot_type.size
@@ -341,13 +341,9 @@ def write_figures(ep: Episode, out_dir: str | Path) -> list[Path]:
                (STEMS[1], (13.0, 0.42 * (H + R) + 3.0), draw_timeline),
                (STEMS[2], (12.5, 2.2 * np.ceil(H / 2) + 2.1), draw_humans)]
     written = []
-    # fixed SVG ids and no date: the same episode gives the same files
-    with matplotlib.rc_context({"svg.hashsalt": "ata-show", "font.size": 9}):
+    with matplotlib.rc_context({"font.size": 9}):
         for stem, size, draw in figures:
             fig = Figure(figsize=size)
             draw(ep, fig)
-            for ext in ("png", "svg"):
-                path = out / f"{stem}.{ext}"
-                fig.savefig(path, dpi=150, metadata={"Date": None} if ext == "svg" else None)
-                written.append(path)
+            written += save_figure(fig, out, stem, tight=False, salt="ata-show")
     return written

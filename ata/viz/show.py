@@ -77,7 +77,7 @@ def show(target: str | None, scenario: int | None, overrides: list[str] | None =
     episode = replay(m, session.registry, scenario)
     if out is None:
         out = (run_dir / f"show-{scenario}" if run_dir is not None else
-               runner.default_out_dir(m).parent / f"show-{m.settings.name}-{scenario}")
+               runner.runs_root() / f"show-{m.settings.name}-{scenario}")
     written = draw.write_figures(episode, out)
     checked = run_dir is not None and not overrides
     score = run_score(run_dir, scenario) if checked else None

@@ -1,1 +1,2 @@
-"""Allocation policies: random, greedy, the MILP and keep (learned ones come as optional plugins)."""
+"""Allocation policies: random, greedy, the ITA-MILP baseline and keep (the learned ones come
+as optional plugins)."""

@@ -294,8 +294,8 @@ def _solve_chunk(args: tuple) -> list[Solution]:
 # -- the solution cache ----------------------------------------------------------------------
 # A scenario's MILP depends on its ScenarioData (I, the working hours at t = 0, the horizon and
 # the uncertainty level) and the [milp] settings alone, so its solution can be kept on disk and
-# reused by the next evaluation: under milp/ in the run's cache folder (`ata.experiment.cache`), when
-# one is set (`ata eval` sets one).
+# reused by the next evaluation: under milp/ in the run's cache folder
+# (`ata.experiment.cache`), when one is set (`ata eval` sets one).
 
 CACHE_FORMAT = 1
 """Bumped when the cached record changes shape."""
