@@ -1,0 +1,44 @@
+"""Paired differences between two evaluations of the same methods on the same scenarios: for
+every (method, setting, level) in both, the mean of (score in A - score in B) over the scenario
+ids both hold, with 1.96 standard errors. For comparing two sets of weights run under the same
+method names (docs/training.md, "Setting (b)").
+
+Usage: python tools/compare_evals.py EVAL_DIR_A EVAL_DIR_B
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+from ata.experiment.report import md_table, read_results
+
+
+def main(a_dir: str, b_dir: str) -> None:
+    a, b = read_results(a_dir), read_results(b_dir)
+    rows = []
+    for method in a.methods:
+        for setting in a.settings:
+            for level in a.levels:
+                scores = []
+                for res in (a, b):
+                    c = res.columns
+                    sel = (c["method"] == method) & (c["setting"] == setting) & \
+                        (c["uncertainty"] == level)
+                    scores.append(dict(zip(c["scenario"][sel].tolist(), c["score"][sel])))
+                common = sorted(set(scores[0]) & set(scores[1]))
+                if not common:
+                    continue
+                d = np.array([scores[0][i] - scores[1][i] for i in common])
+                half = 1.96 * d.std(ddof=1) / np.sqrt(d.size) if d.size > 1 else float("nan")
+                rows.append([method, setting, level, str(d.size),
+                             f"{d.mean():+.1f} ± {half:.1f}"])
+    print("\n".join(md_table(["method", "setting", "level", "scenarios", "A - B (± 1.96 SE)"],
+                             rows)))
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 3:
+        sys.exit(__doc__)
+    main(sys.argv[1], sys.argv[2])
