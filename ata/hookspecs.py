@@ -48,8 +48,10 @@ def ata_register_components(register: "Register") -> None:
 def ata_setup(sim: "SimState") -> None:
     """Sample the batch's scenarios: inherent information, initial state, event schedules.
 
-    :param sim: the batch; models create their groups with ``sim.group(name)`` and draw their
-        numbers from ``sim.rng`` with stream names of their own.
+    :param sim: the batch; models declare the state they own with ``sim.own(name, state)``
+        (others read it with ``sim.group(name)``, read-only; work passes through
+        ``sim.queue(name)``) and draw their numbers from ``sim.rng`` with stream names of their
+        own.
     """
 
 

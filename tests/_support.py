@@ -166,7 +166,7 @@ def make_sim(triples, *, humans=1, robots=1, tasks=1, batch=1, condition="never"
 
 
 def set_robots(sim, types, fail_time=None):
-    r = sim.sim.group("robots")
+    r = sim.sim.groups["robots"]
     r.type[:] = types
     r.speed[:] = np.where(np.asarray(types) == UAV, 8.0, 3.0)
     if fail_time is not None:
@@ -175,7 +175,7 @@ def set_robots(sim, types, fail_time=None):
 
 def set_tasks(sim, spec):
     """spec: one (dx, dy, kind, difficulty, outcome_u) per POI; estimate = truth."""
-    t = sim.sim.group("tasks")
+    t = sim.sim.groups["tasks"]
     for p, (dx, dy, kind, diff, u) in enumerate(spec):
         t.pos[:, p] = (BASE + dx, BASE + dy)
         t.est_kind[:, p] = t.true_kind[:, p] = kind
@@ -186,7 +186,7 @@ def set_tasks(sim, spec):
 
 def set_humans(sim, spec):
     """spec: one (skill band, eta, lambda, t0 hours) per human."""
-    h = sim.sim.group("humans")
+    h = sim.sim.groups["humans"]
     for i, (skill, eta, lam, t0) in enumerate(spec):
         h.skill[:, i], h.eta[:, i], h.lam[:, i], h.t0_h[:, i] = skill, eta, lam, t0
 

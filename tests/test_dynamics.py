@@ -45,7 +45,7 @@ def test_autonomous_legs_capture_time_quality_onboard_outcome_and_points():
     #  POI 1: 480 m north of POI 0, air, high. leaves at 13, 480 / 8 + 3 = 63 -> 76.0 s.
     #         UAV/air/auto -> Upper-Medium (2). P_rc[Upper-Medium, high] = 0.3.
     set_tasks(sim, [(80, 0, GROUND, LOW, 0.0), (80, 480, AIR, HIGH, 0.0)])
-    t = sim.sim.group("tasks")
+    t = sim.sim.groups["tasks"]
     t.outcome_u[0] = [0.6 - 1e-9, 0.3 - 1e-9]
     t.outcome_u[1] = [0.6 + 1e-9, 0.3 + 1e-9]
     obs1 = observed_after(sim, 1)
@@ -228,7 +228,7 @@ def test_classification_probability_fatigue_and_overload():
     set_robots(sim, [UGV])
     set_humans(sim, [(MED, 0.6, 0.5, 1.5)])
     set_tasks(sim, [(891, 0, GROUND, MED, 0.0)])
-    sim.sim.group("tasks").outcome_u[:, 0] = [p_hc - 1e-9, p_hc + 1e-9]
+    sim.sim.groups["tasks"].outcome_u[:, 0] = [p_hc - 1e-9, p_hc + 1e-9]
     run_epochs(sim)
     assert_trace(sim.sim.trace, [
         ("allocate", 0, 2),
@@ -252,7 +252,7 @@ def test_classification_probability_fatigue_floor_and_underload():
     set_robots(sim, [UAV])
     set_humans(sim, [(MED, 0.7, 0.6, 4.0)])
     set_tasks(sim, [(80, 0, GROUND, LOW, 0.0), (240, 0, AIR, HIGH, 0.0)])
-    sim.sim.group("tasks").outcome_u[:, 1] = [p_hc - 1e-9, p_hc + 1e-9]
+    sim.sim.groups["tasks"].outcome_u[:, 1] = [p_hc - 1e-9, p_hc + 1e-9]
     run_epochs(sim)
     assert_trace(sim.sim.trace, [
         ("allocate", 0, 2),
@@ -328,7 +328,7 @@ def test_robot_failure_mid_leg_aborts_the_leg_and_shows_from_the_next_epoch():
     run_epochs(sim)
     assert_trace(sim.sim.trace, [("allocate", 0, 1), ("capture", 13.0, 0, 1, 1, 1),
                                  ("fail", 70.0, 0, 0)])
-    t = sim.sim.group("tasks")
+    t = sim.sim.groups["tasks"]
     assert t.capture_time[0, 0] == INF and t.classified_at[0, 0] == INF and t.gain[0, 0] == 0
     assert perf(sim) == {0: 15.0}
     # POI 0 stays with the failed robot for the whole episode
@@ -382,7 +382,7 @@ def test_attribute_change_outcomes_use_the_truth_and_show_when_revealed():
     set_robots(sim, [UAV, UAV])
     set_humans(sim, [(MED, 0.5, 0.5, 0.0)])
     set_tasks(sim, [(1600, 0, GROUND, HIGH, 0.5), (0, 80, AIR, LOW, 0.0)])
-    t = sim.sim.group("tasks")
+    t = sim.sim.groups["tasks"]
     t.est_kind[0] = [AIR, GROUND]
     t.est_diff[0] = [LOW, HIGH]
     t.reveal_time[0] = [90.0, INF]

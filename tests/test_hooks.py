@@ -10,6 +10,8 @@ from __future__ import annotations
 import re
 from typing import Any
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -171,7 +173,7 @@ def test_ata_setup_and_ata_inherent_per_scenario():
     class Probe:
         @hookimpl
         def ata_setup(self, sim):
-            sim.group("probe").draw = sim.rng.uniform("probe", 0, (3,))
+            self.state = sim.own("probe", SimpleNamespace(draw=sim.rng.uniform("probe", 0, (3,))))
 
         @hookimpl
         def ata_inherent(self, sim, inherent):
@@ -183,7 +185,7 @@ def test_ata_setup_and_ata_inherent_per_scenario():
     assert sorted(inherent) == ["humans", "probe", "robots", "tasks"]
     draws = inherent["probe"].col("draw")
     assert draws.shape == (3, 3)
-    assert np.array_equal(draws, sim.sim.group("probe").draw)
+    assert np.array_equal(draws, sim.sim.groups["probe"].draw)
     # scenario 2's numbers do not depend on the batch it is in
     alone = Simulation(sim.mission, registry, [2])
     assert np.array_equal(alone.reset()["probe"].col("draw")[0], draws[2])
@@ -236,7 +238,7 @@ def test_ata_inject_runs_in_listed_order_on_a_copy(order, expected):
     ctx = sim.last_context
     assert np.all(ctx.observed["humans"].col("fatigue") == expected)
     # the truth is untouched: F_f of the initial working hours
-    hours = sim.sim.group("humans").t0_h
+    hours = sim.sim.groups["humans"].t0_h
     assert np.array_equal(sim.last_truth["humans"].col("fatigue"), tables.fatigue(hours))
 
 

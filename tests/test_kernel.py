@@ -80,7 +80,7 @@ def simulation(s, overrides, batch=1, trace=True):
 
 def place(sim, tasks, types=None):
     """tasks: (dx, dy) per POI, all ground/low, outcome_u 0 (every classification is won)."""
-    t, r = sim.sim.group("tasks"), sim.sim.group("robots")
+    t, r = sim.sim.groups["tasks"], sim.sim.groups["robots"]
     for p, (dx, dy) in enumerate(tasks):
         t.pos[:, p] = (BASE + dx, BASE + dy)
         t.est_kind[:, p] = t.true_kind[:, p] = 1
@@ -305,7 +305,7 @@ def test_reallocation_keeps_committed_and_captured_triples_and_inactive_scenario
                       "reallocation": policy, "condition": Condition({1: [True, False]})}, batch=2)
     sim.reset()
     place(sim, [(80, 0), (560, 0), (-800, 0)])
-    h = sim.sim.group("humans")
+    h = sim.sim.groups["humans"]
     h.skill[:] = 1
     h.eta[:], h.lam[:], h.t0_h[:] = 0.5, 0.5, 0.0
     for _ in range(5):
@@ -367,7 +367,7 @@ def test_a_reallocation_cancels_a_robots_wait_for_its_old_navigator():
                      {"initial": Fixed([0, 1], [0, 0], [-1, -1]), "reallocation": policy})
     sim.reset()
     place(sim, [(560, 0), (-160, 0)])
-    h = sim.sim.group("humans")
+    h = sim.sim.groups["humans"]
     h.skill[:] = 1
     for _ in range(3):
         sim.step_epoch()

@@ -239,7 +239,7 @@ def test_sampled_scenarios_follow_section_1():
     s = load_session(str(BASELINE_MISSION), ["mission.scenarios=50", "mission.batch_size=50"])
     sim = Simulation(s.mission, s.registry, np.arange(50))
     inherent = sim.reset()
-    h = sim.sim.group("humans")
+    h = sim.sim.groups["humans"]
     assert h.theta_c.min() >= 0 and h.theta_c.max() < 0.7853981633974483
     assert h.theta_s.min() >= 0 and h.theta_s.max() < 0.7853981633974483
     np.testing.assert_allclose(h.eta, np.sin(h.theta_c))
@@ -285,7 +285,7 @@ def test_upper_bound_hand_computed():
       U = 3 (it would be 0 if auto did not count as class 1: UGV-air-low = Low, P_rc 0.5)
     """
     sim = _tiny_sim()
-    h, r, t = (sim.sim.group(g) for g in ("humans", "robots", "tasks"))
+    h, r, t = (sim.sim.groups[g] for g in ("humans", "robots", "tasks"))
     h.eta = np.array([[0.6, 0.3], [0.0, 0.0]])
     h.lam = np.array([[0.45, 0.7], [0.5, 0.2]])
     h.skill = np.array([[1, 2], [0, 0]])
@@ -305,7 +305,7 @@ def test_upper_bound_uses_true_attributes_not_estimate():
     and a navigator-less, classifier-less team (eta = 0): truth gives UAV-ground-auto = Medium,
     P_rc[Medium, high] = 0.2 -> 0; the estimate would give 15 * (2*0.7 - 1) = 6."""
     sim = _tiny_sim()
-    h, r, t = (sim.sim.group(g) for g in ("humans", "robots", "tasks"))
+    h, r, t = (sim.sim.groups[g] for g in ("humans", "robots", "tasks"))
     h.eta = np.zeros((2, 2))
     h.lam = np.full((2, 2), 0.5)
     h.skill = np.ones((2, 2), dtype=np.int64)

@@ -37,17 +37,17 @@ def build(level: str | None, extra: list[str] = (), batch: int = B, epochs: int 
     s = load_session(str(BASELINE_MISSION), overrides + list(extra))
     sim = Simulation(s.mission, s.registry, np.arange(batch))
     inherent = sim.reset()
-    tasks = sim.sim.group("tasks")
+    tasks = sim.sim.groups["tasks"]
     setup = {"est_kind": tasks.est_kind.copy(), "est_diff": tasks.est_diff.copy(),
              "true_kind": tasks.true_kind.copy(), "true_diff": tasks.true_diff.copy(),
              "reveal_time": tasks.reveal_time.copy(),
-             "fail_time": sim.sim.group("robots").fail_time.copy(), "inherent": inherent}
+             "fail_time": sim.sim.groups["robots"].fail_time.copy(), "inherent": inherent}
     frames = []
     for _ in range(epochs):
         sim.step_epoch()
         ctx = sim.last_context
         frames.append((sim.last_truth.copy(), ctx.observed.copy(), sim.sim.now - 60.0,
-                       sim.sim.group("tasks").capture_time.copy()))
+                       sim.sim.groups["tasks"].capture_time.copy()))
     return sim, setup, frames
 
 
@@ -213,7 +213,7 @@ def test_robot_failure_shows_from_next_epoch(level_run):
         working = truth["robots"].col("working")
         np.testing.assert_array_equal(working == 0.0, fail < now)
     # and the true state has them failed for good
-    r = sim.sim.group("robots")
+    r = sim.sim.groups["robots"]
     np.testing.assert_array_equal(r.failed, fail < sim.sim.now)
     assert r.failed.any()
 
@@ -310,8 +310,8 @@ def test_robot_failure_setting_and_custom_level():
     assert plug("injectors:fatigue_noise").variance == 0.02
     assert plug("injectors:latency").p == 0.3
     assert plug("perturbations:robot_failure").p == 0.7
-    fails = np.isfinite(sim.sim.group("robots").fail_time)
+    fails = np.isfinite(sim.sim.groups["robots"].fail_time)
     check_rate(int(fails.sum()), fails.size, 0.7, [0.3], "robot failure override")
-    t = sim.sim.group("tasks")
+    t = sim.sim.groups["tasks"]
     changed = (t.true_kind != t.est_kind) | (t.true_diff != t.est_diff)
     check_rate(int(changed.sum()), changed.size, 0.3, [0.2, 0.4], "custom event probability")

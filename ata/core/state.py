@@ -204,11 +204,100 @@ class EpisodeRecord:
         return self.r_perf.sum(axis=1)
 
 
+class Queue:
+    """Work passed from one model to another: the producer puts rows (columns of equal length,
+    one row per item, by name), the consumer takes every pending row at once, in the order put.
+
+    Models never write each other's arrays: a robot's capture, a human's work item, a
+    perturbation drawn at set-up travel as rows of a queue that the owner of the state takes.
+    """
+
+    def __init__(self, name: str):
+        self.name = name
+        self._parts: list[dict[str, np.ndarray]] = []
+        self._columns: tuple[str, ...] | None = None
+
+    def put(self, **columns: Any) -> None:
+        """Append rows: every column a 1-D array (or a scalar, broadcast) of one length."""
+        names = tuple(sorted(columns))
+        if self._columns is None:
+            self._columns = names
+        elif names != self._columns:
+            raise ValueError(f"queue {self.name!r} takes columns {', '.join(self._columns)}; "
+                             f"got {', '.join(names)}")
+        arrays = {k: np.atleast_1d(np.asarray(v)) for k, v in columns.items()}
+        n = max(a.shape[0] for a in arrays.values())
+        for k, a in arrays.items():
+            if a.ndim != 1 or a.shape[0] not in (1, n):
+                raise ValueError(f"queue {self.name!r}: column {k!r} has shape {a.shape}; "
+                                 f"expected ({n},)")
+            if a.shape[0] != n:
+                arrays[k] = np.repeat(a, n)
+        if n:
+            self._parts.append(arrays)
+
+    def __len__(self) -> int:
+        return sum(next(iter(p.values())).shape[0] for p in self._parts)
+
+    def take(self) -> dict[str, np.ndarray] | None:
+        """Every pending row, concatenated in the order put, and the queue emptied; None when
+        nothing is pending."""
+        if not self._parts:
+            return None
+        parts, self._parts = self._parts, []
+        if len(parts) == 1:
+            return parts[0]
+        return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
+def last_per_key(*keys: np.ndarray) -> np.ndarray:
+    """Indices of the last row of each distinct key (rows taken in order: the latest wins)."""
+    n = keys[0].shape[0]
+    order = np.lexsort(tuple(reversed(keys)))           # by key, stable: rows in order per key
+    k = np.stack([key[order] for key in keys])
+    last = np.r_[np.any(k[:, 1:] != k[:, :-1], axis=0), True] if n else np.zeros(0, bool)
+    return order[last]
+
+
+class ReadOnlyState:
+    """Another model's state as a model may see it: every array a read-only view.
+
+    Writing through it raises; a model passes work to another through a `Queue`.
+    """
+
+    __slots__ = ("_name", "_state")
+
+    def __init__(self, name: str, state: Any):
+        object.__setattr__(self, "_name", name)
+        object.__setattr__(self, "_state", state)
+
+    def __getattr__(self, attr: str) -> Any:
+        value = getattr(object.__getattribute__(self, "_state"), attr)
+        if isinstance(value, np.ndarray):
+            value = value.view()
+            value.flags.writeable = False
+        return value
+
+    def __setattr__(self, attr: str, value: Any) -> None:
+        raise AttributeError(f"the {self._name!r} state is written by its owner only; pass work "
+                             "to it through a queue (sim.queue)")
+
+    def as_dict(self) -> dict[str, Any]:
+        """Every field, arrays as read-only views."""
+        return {k: getattr(self, k) for k in vars(object.__getattribute__(self, "_state"))}
+
+    def __repr__(self) -> str:
+        return f"ReadOnlyState({self._name!r}, {type(self._state).__name__})"
+
+
 class SimState:
     """Everything one batch of scenarios holds while it runs.
 
-    Models keep their true state in named groups (`sim.group("humans")`, a plain namespace of
-    arrays); `sim.params` carries the resolved mission; `sim.rng` draws per-scenario numbers.
+    Each model owns the typed state of its group (``sim.own("humans", HumanState(...))``, which
+    returns it for the owner to write); every other component sees it read-only through
+    ``sim.group("humans")``. Work passes between models through named queues
+    (``sim.queue(name)``). ``sim.params`` carries the resolved mission; ``sim.rng`` draws
+    per-scenario numbers.
     """
 
     def __init__(self, *, sizes: TeamSize, clock: Clock, rng: BatchRNG,
@@ -222,27 +311,38 @@ class SimState:
         self.epoch = 0
         self.tick = 0
         self.groups: dict[str, Any] = {}
+        """Group name -> the owner's state (writable: for its owner, and for tests)."""
+        self.queues: dict[str, Queue] = {}
         self.allocation: Allocation | None = None
         self.record = EpisodeRecord.empty(self.batch_size, clock.n_epochs, sizes.tasks)
         self.trace: list[tuple] | None = [] if trace else None
 
-    def group(self, name: str) -> Any:
-        """The namespace of arrays for one group, created empty on first use."""
-        if name not in self.groups:
-            self.groups[name] = _Group()
-        return self.groups[name]
+    def own(self, name: str, state: Any) -> Any:
+        """Declare the state of group `name`, owned by the caller, and return it."""
+        if name in self.groups:
+            raise ValueError(f"group {name!r} has an owner already: "
+                             f"{type(self.groups[name]).__name__}")
+        self.groups[name] = state
+        return state
+
+    def group(self, name: str) -> ReadOnlyState:
+        """Group `name`'s state, read-only (its owner keeps what `own` returned)."""
+        try:
+            return ReadOnlyState(name, self.groups[name])
+        except KeyError:
+            raise KeyError(f"no group {name!r}: a model declares it with sim.own; groups: "
+                           f"{', '.join(sorted(self.groups)) or 'none'}") from None
+
+    def queue(self, name: str) -> Queue:
+        """The queue `name`, created empty on first use."""
+        if name not in self.queues:
+            self.queues[name] = Queue(name)
+        return self.queues[name]
 
     def log(self, *event: Any) -> None:
         """Append an event to the trace when tracing is on (tests assert on it)."""
         if self.trace is not None:
             self.trace.append(event)
-
-
-class _Group:
-    """A plain attribute namespace for a model's arrays."""
-
-    def __repr__(self) -> str:
-        return f"Group({', '.join(sorted(vars(self)))})"
 
 
 @dataclass

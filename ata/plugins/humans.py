@@ -1,17 +1,23 @@
 """The human model: P_hc, classification time, fatigue, workload, situational awareness, and one
 first-come-first-served busy timeline per human (MODEL.md section 5).
 
-Group ``humans``: ``eta``, ``lam``, ``theta_c``, ``theta_s``, ``skill``, ``t0_h`` (working hours
-at the start), ``busy_until``, ``booked_s`` (busy seconds booked so far), ``busy_ticks``
-(B, H, n_ticks: busy seconds in each tick), ``sa``, ``sa_time``, ``last_robot``.
+It owns group ``humans`` (`HumanState`).
 
 A reallocation that changes a human's work (an item gained or lost, as navigator or classifier,
 that had not started) re-briefs that human: busy for ``rebrief_s`` before the next item, and SA
 drops as on a switch of robot (MODEL.md section 3a); ``rebriefs`` counts them.
 
-Work items come from the robot model: a classification waits in ``tasks.cls_ready`` (the time
-the image was captured), a navigation leg in ``robots.nav_ready`` with its ``nav_duration``.
-Each human takes the earliest-ready item among those addressed to them.
+Work items come through queues, into the human model's own lists of pending items:
+
+* ``humans.classify`` (from the task model): ``b, p, ready, human, robot, quality,
+  difficulty``, an image waiting for its human classifier since its capture;
+* ``humans.navigate`` (from the robot model): ``b, r, ready, human, duration, deadline``, robot
+  r's next leg waiting for its navigator (``ready = inf`` withdraws it; the robot fails at
+  ``deadline``, after which the leg cannot start).
+
+Each human takes the earliest-ready item among those addressed to them. Starting a leg goes to
+``robots.leg_started`` (``b, r, begin, end``); a classification, once made, to
+``tasks.classified`` (``b, p, time, p_ok``).
 """
 
 from __future__ import annotations
@@ -22,11 +28,44 @@ import numpy as np
 
 from ata import hookimpl
 from ata.core.settings import param
-from ata.core.state import Allocation, Observation, SimState
+from ata.core.state import Allocation, Observation, SimState, last_per_key
 from ata.plugins import tables
 
 HUMAN_INHERENT = ("cognitive", "expertise", "skill")
 HUMAN_STATE = ("working_time", "fatigue", "idleness", "sa")
+
+
+@dataclass
+class HumanState:
+    """Per scenario and human, (B, H) unless said."""
+
+    theta_c: np.ndarray           # cognitive angle; eta = sin(theta_c)
+    theta_s: np.ndarray           # expertise angle; lam = sin(theta_s)
+    eta: np.ndarray
+    lam: np.ndarray
+    skill: np.ndarray             # skill band 0..2 (low, medium, high)
+    t0_h: np.ndarray              # working hours at the start
+    busy_until: np.ndarray        # end of the last item booked
+    booked_s: np.ndarray          # busy seconds booked so far
+    busy_ticks: np.ndarray        # (B, H, n_ticks) busy seconds in each tick
+    sa: np.ndarray                # situational awareness at sa_time
+    sa_time: np.ndarray
+    last_robot: np.ndarray        # the robot of the last item (-1: none)
+    cls_count: np.ndarray         # classifications made, and under which conditions
+    cls_fatigued: np.ndarray
+    cls_u_low: np.ndarray
+    cls_u_high: np.ndarray
+    rebriefs: np.ndarray
+    # pending work, (B, P) per POI and (B, R) per robot
+    cls_ready: np.ndarray         # when POI p's image waits for its classifier (inf: none)
+    cls_human: np.ndarray
+    cls_robot: np.ndarray
+    cls_quality: np.ndarray
+    cls_diff: np.ndarray
+    nav_ready: np.ndarray         # when robot r's next leg waits for its navigator (inf: none)
+    nav_human: np.ndarray
+    nav_duration: np.ndarray
+    nav_deadline: np.ndarray      # the robot's failure time: the leg cannot start after it
 
 
 class HumanModel:
@@ -53,41 +92,41 @@ class HumanModel:
     @hookimpl
     def ata_setup(self, sim: SimState) -> None:
         B, H, s = sim.batch_size, sim.sizes.humans, self.settings
-        h = sim.group("humans")
-        h.theta_c = sim.rng.uniform("humans.theta_c", 0, (H,)) * s.theta_max
-        h.theta_s = sim.rng.uniform("humans.theta_s", 0, (H,)) * s.theta_max
-        h.eta = np.sin(h.theta_c)
-        h.lam = np.sin(h.theta_s)
-        h.skill = tables.skill_band(h.theta_s)
-        h.t0_h = sim.rng.uniform("humans.t0", 0, (H,)) * s.t0_max_h
-        h.busy_until = np.zeros((B, H))
-        h.booked_s = np.zeros((B, H))
-        h.busy_ticks = np.zeros((B, H, sim.clock.n_ticks))
-        h.sa = np.ones((B, H))
-        h.sa_time = np.zeros((B, H))
-        h.last_robot = np.full((B, H), -1, dtype=np.int64)
-        h.cls_count = np.zeros((B, H))
-        h.cls_fatigued = np.zeros((B, H))
-        h.cls_u_low = np.zeros((B, H))
-        h.cls_u_high = np.zeros((B, H))
-        h.rebriefs = np.zeros((B, H))
+        P, R = sim.sizes.tasks, sim.sizes.robots
+        theta_c = sim.rng.uniform("humans.theta_c", 0, (H,)) * s.theta_max
+        theta_s = sim.rng.uniform("humans.theta_s", 0, (H,)) * s.theta_max
+        zeros = lambda *shape: np.zeros(shape)                      # noqa: E731
+        never = lambda *shape: np.full(shape, np.inf)               # noqa: E731
+        none = lambda *shape: np.full(shape, -1, dtype=np.int64)    # noqa: E731
+        self.state = sim.own("humans", HumanState(
+            theta_c=theta_c, theta_s=theta_s, eta=np.sin(theta_c), lam=np.sin(theta_s),
+            skill=tables.skill_band(theta_s),
+            t0_h=sim.rng.uniform("humans.t0", 0, (H,)) * s.t0_max_h,
+            busy_until=zeros(B, H), booked_s=zeros(B, H),
+            busy_ticks=zeros(B, H, sim.clock.n_ticks), sa=np.ones((B, H)), sa_time=zeros(B, H),
+            last_robot=none(B, H), cls_count=zeros(B, H), cls_fatigued=zeros(B, H),
+            cls_u_low=zeros(B, H), cls_u_high=zeros(B, H), rebriefs=zeros(B, H),
+            cls_ready=never(B, P), cls_human=none(B, P), cls_robot=none(B, P),
+            cls_quality=none(B, P), cls_diff=none(B, P),
+            nav_ready=never(B, R), nav_human=none(B, R), nav_duration=zeros(B, R),
+            nav_deadline=never(B, R)))
         self._edges = np.arange(sim.clock.n_ticks) * sim.clock.tick_s
 
     @hookimpl
     def ata_inherent(self, sim: SimState, inherent: Observation) -> None:
-        h = sim.group("humans")
+        h = self.state
         inherent.add("humans", HUMAN_INHERENT,
                      np.stack([h.eta, h.lam, h.skill], axis=-1).astype(np.float64))
 
     def working_hours(self, sim: SimState, now: float) -> np.ndarray:
         """True working time T (hours) at a tick boundary, (B, H)."""
-        h = sim.group("humans")
+        h = self.state
         k = int(round(now / sim.clock.tick_s))
         return h.t0_h + h.busy_ticks[:, :, :k].sum(axis=2) / 3600.0
 
     def utilisation(self, sim: SimState, now: float) -> np.ndarray:
         """Busy share of the trailing window at a tick boundary, (B, H)."""
-        h, tick = sim.group("humans"), sim.clock.tick_s
+        h, tick = self.state, sim.clock.tick_s
         k = int(round(now / tick))
         lo = max(0, k - int(round(self.settings.window_s / tick)))
         span = min(self.settings.window_s, now)
@@ -97,7 +136,7 @@ class HumanModel:
 
     @hookimpl
     def ata_observe(self, sim: SimState, obs: Observation) -> None:
-        h, s, now = sim.group("humans"), self.settings, sim.now
+        h, s, now = self.state, self.settings, sim.now
         hours = self.working_hours(sim, now)
         sa = np.minimum(1.0, h.sa + s.sa_recovery_per_min * (now - h.sa_time) / 60.0)
         sa = np.where(h.sa_time <= now, sa, h.sa)
@@ -105,25 +144,46 @@ class HumanModel:
                           1.0 - self.utilisation(sim, now), sa], axis=-1)
         obs.add("humans", HUMAN_STATE, feats)
 
+    def _take_work(self, sim: SimState) -> None:
+        """Add the items the queues bring to the pending lists."""
+        h = self.state
+        cls = sim.queue("humans.classify").take()
+        if cls is not None:
+            b, p = cls["b"], cls["p"]
+            h.cls_ready[b, p] = cls["ready"]
+            h.cls_human[b, p] = cls["human"]
+            h.cls_robot[b, p] = cls["robot"]
+            h.cls_quality[b, p] = cls["quality"]
+            h.cls_diff[b, p] = cls["difficulty"]
+        nav = sim.queue("humans.navigate").take()
+        if nav is not None:
+            last = last_per_key(nav["b"], nav["r"])      # a later request replaces an earlier
+            b, r = nav["b"][last], nav["r"][last]
+            h.nav_ready[b, r] = nav["ready"][last]
+            h.nav_human[b, r] = nav["human"][last]
+            h.nav_duration[b, r] = nav["duration"][last]
+            h.nav_deadline[b, r] = nav["deadline"][last]
+
     @hookimpl
     def ata_advance(self, sim: SimState, t0: float, t1: float) -> None:
-        h, t, r = sim.group("humans"), sim.group("tasks"), sim.group("robots")
+        self._take_work(sim)
+        h = self.state
         H = sim.sizes.humans
         for _ in range(64):
-            cb, cp = np.nonzero(t.cls_ready < t1)
-            nb, nr = np.nonzero(r.nav_ready < t1)
+            cb, cp = np.nonzero(h.cls_ready < t1)
+            nb, nr = np.nonzero(h.nav_ready < t1)
             # a robot that fails before its navigator could take the leg has no leg left (its
             # failure is processed after this hook in the same tick): never start it
-            can_start = np.maximum(h.busy_until[nb, r.nav_human[nb, nr]], r.nav_ready[nb, nr])
-            alive = r.fail_time[nb, nr] > can_start
+            can_start = np.maximum(h.busy_until[nb, h.nav_human[nb, nr]], h.nav_ready[nb, nr])
+            alive = h.nav_deadline[nb, nr] > can_start
             nb, nr = nb[alive], nr[alive]
             if cb.size == 0 and nb.size == 0:
                 return
             b = np.concatenate([cb, nb])
             entity = np.concatenate([cp, nr])
             is_nav = np.concatenate([np.zeros(cb.size, bool), np.ones(nb.size, bool)])
-            owner = np.concatenate([sim.allocation.classifier[cb, cp], r.nav_human[nb, nr]])
-            ready = np.concatenate([t.cls_ready[cb, cp], r.nav_ready[nb, nr]])
+            owner = np.concatenate([h.cls_human[cb, cp], h.nav_human[nb, nr]])
+            ready = np.concatenate([h.cls_ready[cb, cp], h.nav_ready[nb, nr]])
             key = b * H + owner
             # first come, first served; ties: classifications first, then the lower index
             order = np.lexsort((entity, is_nav, ready, key))
@@ -140,9 +200,9 @@ class HumanModel:
     def _start_items(self, sim: SimState, b: np.ndarray, hh: np.ndarray, start: np.ndarray,
                      entity: np.ndarray, is_nav: np.ndarray) -> None:
         """Start one work item for each (b, h) pair given: book it and apply its effects."""
-        h, t, r, s = sim.group("humans"), sim.group("tasks"), sim.group("robots"), self.settings
+        h, s = self.state, self.settings
         cls = ~is_nav
-        robot = np.where(is_nav, entity, sim.allocation.robot[b, np.where(cls, entity, 0)])
+        robot = np.where(is_nav, entity, h.cls_robot[b, np.where(cls, entity, 0)])
         # situational awareness: recover since the last update, drop on a switch of robot
         sa = np.minimum(1.0, h.sa[b, hh] + s.sa_recovery_per_min * (start - h.sa_time[b, hh]) / 60)
         last = h.last_robot[b, hh]
@@ -154,24 +214,22 @@ class HumanModel:
         # navigation legs: the robot moves from `begin`
         if is_nav.any():
             nb, nr = b[is_nav], entity[is_nav]
-            duration[is_nav] = r.nav_duration[nb, nr]
-            r.leg_start[nb, nr] = begin[is_nav]
-            r.leg_end[nb, nr] = begin[is_nav] + duration[is_nav]
-            r.nav_ready[nb, nr] = np.inf
+            duration[is_nav] = h.nav_duration[nb, nr]
+            sim.queue("robots.leg_started").put(b=nb, r=nr, begin=begin[is_nav],
+                                                end=begin[is_nav] + duration[is_nav])
+            h.nav_ready[nb, nr] = np.inf
         if cls.any():
             cb, cp, ch = b[cls], entity[cls], hh[cls]
-            q, d = t.quality[cb, cp], t.true_diff[cb, cp]
+            q, d = h.cls_quality[cb, cp], h.cls_diff[cb, cp]
             duration[cls] = tables.T_BAR[q, d]
             hours = h.t0_h[cb, ch] + h.booked_s[cb, ch] / 3600.0
             u = self._utilisation_at(sim, cb, ch, start[cls])
             f_f = tables.fatigue(hours, s.fatigue_floor)
             p_ok = tables.human_success(h.eta[cb, ch], h.lam[cb, ch], f_f, tables.workload(u),
                                         tables.F_D[q, d])
-            points = tables.POINTS[d]
-            t.gain[cb, cp] = np.where(t.outcome_u[cb, cp] < p_ok, points, -points)
-            t.expected_gain[cb, cp] = tables.expected_points(points, p_ok)
-            t.classified_at[cb, cp] = begin[cls] + duration[cls]
-            t.cls_ready[cb, cp] = np.inf
+            sim.queue("tasks.classified").put(b=cb, p=cp, time=begin[cls] + duration[cls],
+                                              p_ok=p_ok)
+            h.cls_ready[cb, cp] = np.inf
             h.cls_count[cb, ch] += 1
             h.cls_fatigued[cb, ch] += f_f < 0.95
             h.cls_u_low[cb, ch] += u < 0.45
@@ -189,7 +247,7 @@ class HumanModel:
     def _book(self, sim: SimState, b: np.ndarray, hh: np.ndarray, start: np.ndarray,
               end: np.ndarray) -> None:
         """Book [start, end) as busy time of the given (b, h) pairs (each pair at most once)."""
-        h = sim.group("humans")
+        h = self.state
         overlap = np.clip(np.minimum(end[:, None], self._edges + sim.clock.tick_s)
                           - np.maximum(start[:, None], self._edges), 0.0, None)
         h.busy_ticks[b, hh] += overlap
@@ -212,7 +270,7 @@ class HumanModel:
         b, hh = np.nonzero(touched)
         if b.size == 0:
             return
-        h = sim.group("humans")
+        h = self.state
         start = np.maximum(h.busy_until[b, hh], sim.now)
         sa = np.minimum(1.0, h.sa[b, hh] + s.sa_recovery_per_min * (start - h.sa_time[b, hh])
                         / 60.0)
@@ -231,7 +289,7 @@ class HumanModel:
         `start`, so the busy time of a tick before it is all inside the window's range. The
         window's first tick is the first one wholly inside it (a tick straddling its lower edge
         is left out)."""
-        h, tick, window = sim.group("humans"), sim.clock.tick_s, self.settings.window_s
+        h, tick, window = self.state, sim.clock.tick_s, self.settings.window_s
         k_hi = np.floor(start / tick).astype(np.int64) + 1
         k_lo = np.maximum(0, np.ceil((start - window) / tick).astype(np.int64))
         idx = np.arange(sim.clock.n_ticks)
@@ -242,7 +300,7 @@ class HumanModel:
 
     @hookimpl
     def ata_episode_end(self, sim: SimState) -> None:
-        h, m = sim.group("humans"), sim.record.metrics
+        h, m = self.state, sim.record.metrics
         n = np.maximum(h.cls_count.sum(axis=1), 1)
         m["human_classifications"] = h.cls_count.sum(axis=1)
         m["fatigued_share"] = h.cls_fatigued.sum(axis=1) / n

@@ -1,10 +1,11 @@
 """The robot model: UAV and UGV motion, image quality (Table I), capture, onboard classification
 (P_rc), and the hand-over of navigation legs and classifications to humans (MODEL.md section 4).
 
-Group ``robots``: ``type``, ``speed``, ``pos`` (B, R, 2), ``failed``, ``fail_time``, ``target``
-(POI or -1), ``leg_start``/``leg_end`` (inf when no leg is under way), ``leg_from``, ``leg_nav``,
-``nav_ready``/``nav_human``/``nav_duration`` (a leg waiting for its human navigator),
-``free_at``, ``parked`` (nothing left to visit), ``moved_s`` (seconds of finished legs).
+It owns group ``robots`` (`RobotState`). Work leaves it through queues: a capture to
+``tasks.captured`` (``b, p, time, quality, robot, classifier``), a leg that needs its human
+navigator to ``humans.navigate`` (``b, r, ready, human, duration, deadline``; ``ready = inf``
+withdraws it). A navigator starting the leg comes back through ``robots.leg_started`` (``b, r,
+begin, end``), a failure drawn at set-up through ``robots.failure`` (``b, r, time``).
 
 A robot is idle, waiting for its navigator, or on a leg (travel then the capture). A leg's
 times are exact; the kernel tick only decides when the next event is looked at.
@@ -29,6 +30,34 @@ from ata.plugins.routing import ROUTINGS
 
 ROBOT_INHERENT = ("uav", "ugv", "speed")
 ROBOT_STATE = ("x", "y", "idleness", "working", "target")
+
+
+@dataclass
+class RobotState:
+    """Per scenario and robot, (B, R) unless said."""
+
+    area_m: float
+    type: np.ndarray              # tables.UAV / tables.UGV
+    speed: np.ndarray             # autonomous speed, m/s
+    pos: np.ndarray               # (B, R, 2) m, where the robot stands (or left from)
+    failed: np.ndarray
+    fail_time: np.ndarray         # inf: never fails
+    target: np.ndarray            # the POI it heads for or waits to head for (-1: none)
+    leg_start: np.ndarray         # inf when no leg is under way
+    leg_end: np.ndarray
+    leg_from: np.ndarray          # (B, R, 2)
+    leg_nav: np.ndarray           # the leg's navigator (-1: autonomous)
+    nav_ready: np.ndarray         # a leg waiting for its human navigator since (inf: none)
+    nav_human: np.ndarray
+    nav_duration: np.ndarray
+    free_at: np.ndarray           # when it may take its next POI
+    parked: np.ndarray            # nothing left to visit
+    moved_s: np.ndarray           # seconds of finished legs
+    moved_at_epoch: np.ndarray
+    idleness: np.ndarray
+    replan_hold: np.ndarray       # hold after the capture in hand (MODEL.md section 3a)
+    replans: np.ndarray
+    visited: np.ndarray           # (B, P) bool: POIs captured
 
 
 class RobotModel:
@@ -60,41 +89,57 @@ class RobotModel:
     @hookimpl
     def ata_setup(self, sim: SimState) -> None:
         B, R, s = sim.batch_size, sim.sizes.robots, self.settings
-        r = sim.group("robots")
         n_uav = int(round(R * s.uav_fraction))
-        r.type = np.broadcast_to(np.where(np.arange(R) < n_uav, tables.UAV, tables.UGV),
-                                 (B, R)).astype(np.int64)
-        r.speed = np.where(r.type == tables.UAV, s.uav_speed, s.ugv_speed).astype(float)
+        kind = np.broadcast_to(np.where(np.arange(R) < n_uav, tables.UAV, tables.UGV),
+                               (B, R)).astype(np.int64)
         area = sim.group("tasks").area_m
-        r.area_m = area
-        r.pos = np.full((B, R, 2), area / 2.0)
-        r.failed = np.zeros((B, R), dtype=bool)
-        r.fail_time = np.full((B, R), np.inf)
-        r.target = np.full((B, R), -1, dtype=np.int64)
-        r.leg_start = np.full((B, R), np.inf)
-        r.leg_end = np.full((B, R), np.inf)
-        r.leg_from = r.pos.copy()
-        r.leg_nav = np.full((B, R), -1, dtype=np.int64)
-        r.nav_ready = np.full((B, R), np.inf)
-        r.nav_human = np.full((B, R), -1, dtype=np.int64)
-        r.nav_duration = np.zeros((B, R))
-        r.free_at = np.zeros((B, R))
-        r.parked = np.zeros((B, R), dtype=bool)
-        r.moved_s = np.zeros((B, R))
-        r.moved_at_epoch = np.zeros((B, R))
-        r.idleness = np.ones((B, R))
-        r.replan_hold = np.zeros((B, R))
-        r.replans = np.zeros((B, R))
+        pos = np.full((B, R, 2), area / 2.0)
+        never = np.full((B, R), np.inf)
+        none = np.full((B, R), -1, dtype=np.int64)
+        zeros = np.zeros((B, R))
+        self.state = sim.own("robots", RobotState(
+            area_m=area, type=kind,
+            speed=np.where(kind == tables.UAV, s.uav_speed, s.ugv_speed).astype(float),
+            pos=pos, failed=np.zeros((B, R), dtype=bool), fail_time=never.copy(),
+            target=none.copy(), leg_start=never.copy(), leg_end=never.copy(),
+            leg_from=pos.copy(), leg_nav=none.copy(), nav_ready=never.copy(),
+            nav_human=none.copy(), nav_duration=zeros.copy(), free_at=zeros.copy(),
+            parked=np.zeros((B, R), dtype=bool), moved_s=zeros.copy(),
+            moved_at_epoch=zeros.copy(), idleness=np.ones((B, R)), replan_hold=zeros.copy(),
+            replans=zeros.copy(), visited=np.zeros((B, sim.sizes.tasks), dtype=bool)))
+
+    def _take_work(self, sim: SimState) -> None:
+        """Apply what the queues hold: failures drawn at set-up, legs a navigator started."""
+        r = self.state
+        failures = sim.queue("robots.failure").take()
+        if failures is not None:
+            r.fail_time[failures["b"], failures["r"]] = failures["time"]
+        started = sim.queue("robots.leg_started").take()
+        if started is not None:
+            b, rr = started["b"], started["r"]
+            r.leg_start[b, rr] = started["begin"]
+            r.leg_end[b, rr] = started["end"]
+            r.nav_ready[b, rr] = np.inf
+
+    def _ask_navigator(self, sim: SimState, b: np.ndarray, rr: np.ndarray) -> None:
+        """Tell the human model of robot rr's leg waiting for its navigator (or withdrawn)."""
+        r = self.state
+        if b.size:
+            sim.queue("humans.navigate").put(b=b, r=rr, ready=r.nav_ready[b, rr],
+                                             human=r.nav_human[b, rr],
+                                             duration=r.nav_duration[b, rr],
+                                             deadline=r.fail_time[b, rr])
 
     @hookimpl
     def ata_inherent(self, sim: SimState, inherent: Observation) -> None:
-        r = sim.group("robots")
+        self._take_work(sim)
+        r = self.state
         feats = np.stack([r.type == tables.UAV, r.type == tables.UGV, r.speed], axis=-1)
         inherent.add("robots", ROBOT_INHERENT, feats.astype(np.float64))
 
     def position(self, sim: SimState, now: float) -> np.ndarray:
         """True positions at `now`, interpolated along legs under way, (B, R, 2)."""
-        r, t = sim.group("robots"), sim.group("tasks")
+        r, t = self.state, sim.group("tasks")
         moving = np.isfinite(r.leg_start) & (r.target >= 0)
         if not moving.any():
             return r.pos.copy()
@@ -107,7 +152,7 @@ class RobotModel:
 
     def moved_until(self, sim: SimState, now: float) -> np.ndarray:
         """Seconds spent on legs up to `now`, (B, R)."""
-        r = sim.group("robots")
+        r = self.state
         under_way = np.isfinite(r.leg_start)
         with np.errstate(invalid="ignore"):   # inf - inf where no leg is under way
             partial = np.where(under_way, np.clip(now - r.leg_start, 0.0,
@@ -116,7 +161,7 @@ class RobotModel:
 
     @hookimpl
     def ata_observe(self, sim: SimState, obs: Observation) -> None:
-        r, now = sim.group("robots"), sim.now
+        r, now = self.state, sim.now
         pos = self.position(sim, now) / r.area_m
         feats = np.stack([pos[..., 0], pos[..., 1], r.idleness, ~r.failed, r.target], axis=-1)
         obs.add("robots", ROBOT_STATE, feats.astype(np.float64))
@@ -129,7 +174,7 @@ class RobotModel:
     @hookimpl
     def ata_allocation_changed(self, sim: SimState, changed: np.ndarray,
                                previous: Allocation | None) -> None:
-        r = sim.group("robots")
+        r = self.state
         charge = previous is not None and self.settings.replan_s > 0
         out = ~r.failed & (r.target >= 0)          # on a leg, or waiting for its navigator
         on_leg = out & np.isfinite(r.leg_start)
@@ -139,8 +184,10 @@ class RobotModel:
         cancel = waiting & np.take_along_axis(changed, np.maximum(r.target, 0), axis=1) \
             & (r.target >= 0)
         r.target[cancel] = -1
+        withdrawn = cancel & np.isfinite(r.nav_ready)
         r.nav_ready[cancel] = np.inf
         r.nav_human[cancel] = -1
+        self._ask_navigator(sim, *np.nonzero(withdrawn))
         r.free_at = np.where(cancel, np.maximum(r.free_at, sim.now), r.free_at)
         r.parked &= ~changed.any(axis=1)[:, None]
         if not (charge and out.any()):
@@ -161,7 +208,7 @@ class RobotModel:
         """The routing's choice for each robot on a leg once it has captured, under
         `alloc`: asked as if the robot stood at its target already (its target is excluded, as
         every POI a robot heads for is)."""
-        r, t = sim.group("robots"), sim.group("tasks")
+        r, t = self.state, sim.group("tasks")
         saved_pos, saved_alloc = r.pos, sim.allocation
         dest = np.take_along_axis(t.pos, np.maximum(r.target, 0)[..., None], axis=1)
         r.pos = np.where(on_leg[..., None], dest, r.pos)
@@ -173,7 +220,8 @@ class RobotModel:
 
     @hookimpl
     def ata_advance(self, sim: SimState, t0: float, t1: float) -> None:
-        r = sim.group("robots")
+        self._take_work(sim)
+        r = self.state
         # Events in time order within the tick: captures due before a failure, dispatches of
         # robots free before they fail, then failures (which abort the legs under way).
         for _ in range(64):
@@ -195,7 +243,7 @@ class RobotModel:
                 break
 
     def _fail(self, sim: SimState, b: np.ndarray, rr: np.ndarray) -> None:
-        r = sim.group("robots")
+        r = self.state
         ft = r.fail_time[b, rr]
         on_leg = np.isfinite(r.leg_start[b, rr]) & (r.leg_start[b, rr] <= ft)
         with np.errstate(invalid="ignore"):   # inf - inf for robots not on a leg
@@ -210,13 +258,15 @@ class RobotModel:
         r.target[b, rr] = -1
         r.leg_start[b, rr] = np.inf
         r.leg_end[b, rr] = np.inf
+        waiting = np.isfinite(r.nav_ready[b, rr])
         r.nav_ready[b, rr] = np.inf
         r.nav_human[b, rr] = -1
+        self._ask_navigator(sim, b[waiting], rr[waiting])
         for i in range(b.size if sim.trace is not None else 0):
             sim.log("fail", float(ft[i]), int(b[i]), int(rr[i]))
 
     def _capture(self, sim: SimState, b: np.ndarray, rr: np.ndarray) -> None:
-        r, t, h = sim.group("robots"), sim.group("tasks"), sim.group("humans")
+        r, t, h = self.state, sim.group("tasks"), sim.group("humans")
         p = r.target[b, rr]
         te = r.leg_end[b, rr]
         r.moved_s[b, rr] += te - r.leg_start[b, rr]
@@ -224,18 +274,9 @@ class RobotModel:
         nav = r.leg_nav[b, rr]
         nav_class = np.where(nav < 0, 1, h.skill[b, np.maximum(nav, 0)])
         q = tables.QUALITY[r.type[b, rr], t.true_kind[b, p], nav_class]
-        t.capture_time[b, p] = te
-        t.quality[b, p] = q
-        onboard = sim.allocation.classifier[b, p] < 0
-        d = t.true_diff[b, p]
-        points = tables.POINTS[d]
-        p_ok = tables.P_RC[q, d]
-        win = t.outcome_u[b, p] < p_ok
-        ob, op = b[onboard], p[onboard]
-        t.classified_at[ob, op] = te[onboard]
-        t.gain[ob, op] = np.where(win, points, -points)[onboard]
-        t.expected_gain[ob, op] = tables.expected_points(points, p_ok)[onboard]
-        t.cls_ready[b[~onboard], p[~onboard]] = te[~onboard]
+        r.visited[b, p] = True
+        sim.queue("tasks.captured").put(b=b, p=p, time=te, quality=q, robot=rr,
+                                        classifier=sim.allocation.classifier[b, p])
         r.target[b, rr] = -1
         r.leg_start[b, rr] = np.inf
         r.leg_end[b, rr] = np.inf
@@ -247,7 +288,7 @@ class RobotModel:
 
     def _dispatch(self, sim: SimState, free: np.ndarray, t0: float) -> bool:
         """Give each free robot its next POI from the routing; start or queue legs."""
-        r, t, h = sim.group("robots"), sim.group("tasks"), sim.group("humans")
+        r, t, h = self.state, sim.group("tasks"), sim.group("humans")
         nxt = self.next_targets(sim, free)
         got = free & (nxt >= 0)
         r.parked |= free & (nxt < 0)
@@ -271,18 +312,19 @@ class RobotModel:
         r.nav_ready[b, rr] = np.where(human, start, np.inf)
         r.nav_human[b, rr] = np.where(human, nav, -1)
         r.nav_duration[b, rr] = np.where(human, duration, 0.0)
+        self._ask_navigator(sim, b[human], rr[human])
         return True
 
     @hookimpl
     def ata_epoch_end(self, sim: SimState, epoch: int) -> None:
-        r = sim.group("robots")
+        r = self.state
         moved = self.moved_until(sim, sim.now + sim.clock.epoch_s)
         r.idleness = 1.0 - np.clip((moved - r.moved_at_epoch) / sim.clock.epoch_s, 0.0, 1.0)
         r.moved_at_epoch = moved
 
     @hookimpl
     def ata_episode_end(self, sim: SimState) -> None:
-        r = sim.group("robots")
+        r = self.state
         sim.record.metrics["robot_failures"] = r.failed.sum(axis=1).astype(float)
         sim.record.metrics["replans"] = r.replans.sum(axis=1)
 

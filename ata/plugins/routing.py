@@ -20,9 +20,9 @@ def nearest(sim: SimState, free: np.ndarray) -> np.ndarray:
     if fb.size == 0:
         return out
     # open: assigned to this robot, not captured, and no other robot heading there
-    open_ = ~np.isfinite(t.capture_time[fb]) & (sim.allocation.robot[fb] == fr[:, None])
+    open_ = ~r.visited[fb] & (sim.allocation.robot[fb] == fr[:, None])
     tb, tr = np.nonzero(r.target >= 0)
-    heading = np.zeros(t.capture_time.shape, dtype=bool)
+    heading = np.zeros(r.visited.shape, dtype=bool)
     heading[tb, r.target[tb, tr]] = True
     open_ &= ~heading[fb]
     diff = t.pos[fb] - r.pos[fb, fr][:, None, :]                               # (n, P, 2)

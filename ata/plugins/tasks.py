@@ -1,11 +1,14 @@
 """The POI task model: positions, kinds, difficulties, points, status, scoring and the bound U.
 
-Group ``tasks`` holds, per scenario and POI: ``pos`` (m), ``est_kind``/``est_diff`` (the
-satellite estimate), ``true_kind``/``true_diff``, ``reveal_time`` (when a changed attribute
-shows), ``capture_time``, ``quality`` (of the captured image), ``cls_ready`` (when it waits for a
-human classifier), ``classified_at`` and ``gain`` (points won or lost), ``expected_gain`` (the
-points it expected, given its success probability), and ``outcome_u`` (the pre-drawn uniform that
-decides the classification's success).
+It owns group ``tasks`` (`TaskState`) and scores every classification: its success is decided
+here, by the POI's pre-drawn uniform against the success probability of whoever classified it.
+Work reaches it through queues (MODEL.md sections 3-6):
+
+* ``tasks.captured`` (from the robot model): ``b, p, time, quality, robot, classifier``. An
+  onboard classification is scored at once (P_rc); one for a human goes on to
+  ``humans.classify``.
+* ``tasks.classified`` (from the human model): ``b, p, time, p_ok``, a human's classification.
+* ``tasks.attribute_change`` (from a perturbation, at set-up): ``b, p, kind, difficulty, reveal``.
 """
 
 from __future__ import annotations
@@ -23,6 +26,25 @@ TASK_INHERENT = ("x", "y", "kind", "difficulty", "points")
 TASK_STATE = ("unvisited", "captured", "classified", "kind", "difficulty")
 
 
+@dataclass
+class TaskState:
+    """Per scenario and POI, (B, P) unless said."""
+
+    area_m: float                 # side of the square area
+    pos: np.ndarray               # (B, P, 2) m
+    est_kind: np.ndarray          # the satellite estimate (AIR / GROUND)
+    est_diff: np.ndarray          # estimated difficulty 0..2
+    true_kind: np.ndarray
+    true_diff: np.ndarray
+    reveal_time: np.ndarray       # when a changed attribute shows (inf: never changed)
+    outcome_u: np.ndarray         # the pre-drawn uniform that decides the classification
+    capture_time: np.ndarray      # inf until captured
+    quality: np.ndarray           # of the captured image (-1 until captured)
+    classified_at: np.ndarray     # inf until classified
+    gain: np.ndarray              # points won or lost
+    expected_gain: np.ndarray     # the points expected, given the success probability
+
+
 class PoiTaskModel:
     """POIs uniform over the area, kinds and difficulties as in MODEL.md section 1."""
 
@@ -38,26 +60,64 @@ class PoiTaskModel:
     def ata_setup(self, sim: SimState) -> None:
         B, P = sim.batch_size, sim.sizes.tasks
         rng, s = sim.rng, self.settings
-        t = sim.group("tasks")
-        t.area_m = s.area_m
-        t.pos = rng.uniform("tasks.pos", 0, (P, 2)) * s.area_m
-        t.est_kind = np.where(rng.uniform("tasks.kind", 0, (P,)) < s.air_fraction,
-                              tables.AIR, tables.GROUND).astype(np.int64)
-        t.est_diff = rng.integers("tasks.difficulty", 0, 3, (P,))
-        t.true_kind = t.est_kind.copy()
-        t.true_diff = t.est_diff.copy()
-        t.reveal_time = np.full((B, P), np.inf)
-        t.capture_time = np.full((B, P), np.inf)
-        t.quality = np.full((B, P), -1, dtype=np.int64)
-        t.cls_ready = np.full((B, P), np.inf)
-        t.classified_at = np.full((B, P), np.inf)
-        t.gain = np.zeros((B, P))
-        t.expected_gain = np.zeros((B, P))
-        t.outcome_u = rng.uniform("tasks.outcome", 0, (P,))
+        est_kind = np.where(rng.uniform("tasks.kind", 0, (P,)) < s.air_fraction,
+                            tables.AIR, tables.GROUND).astype(np.int64)
+        est_diff = rng.integers("tasks.difficulty", 0, 3, (P,))
+        self.state = sim.own("tasks", TaskState(
+            area_m=s.area_m, pos=rng.uniform("tasks.pos", 0, (P, 2)) * s.area_m,
+            est_kind=est_kind, est_diff=est_diff, true_kind=est_kind.copy(),
+            true_diff=est_diff.copy(), reveal_time=np.full((B, P), np.inf),
+            outcome_u=rng.uniform("tasks.outcome", 0, (P,)),
+            capture_time=np.full((B, P), np.inf), quality=np.full((B, P), -1, dtype=np.int64),
+            classified_at=np.full((B, P), np.inf), gain=np.zeros((B, P)),
+            expected_gain=np.zeros((B, P))))
+
+    def _take_work(self, sim: SimState) -> None:
+        """Apply what the queues hold: attribute changes, captures, human classifications."""
+        t = self.state
+        changes = sim.queue("tasks.attribute_change").take()
+        if changes is not None:
+            b, p = changes["b"], changes["p"]
+            t.true_kind[b, p] = changes["kind"]
+            t.true_diff[b, p] = changes["difficulty"]
+            t.reveal_time[b, p] = changes["reveal"]
+        captured = sim.queue("tasks.captured").take()
+        if captured is not None:
+            b, p, te, q = captured["b"], captured["p"], captured["time"], captured["quality"]
+            t.capture_time[b, p] = te
+            t.quality[b, p] = q
+            onboard = captured["classifier"] < 0
+            if onboard.any():
+                ob, op = b[onboard], p[onboard]
+                self._score(ob, op, te[onboard], tables.P_RC[q[onboard], t.true_diff[ob, op]])
+            human = ~onboard
+            if human.any():
+                hb, hp = b[human], p[human]
+                sim.queue("humans.classify").put(
+                    b=hb, p=hp, ready=te[human], human=captured["classifier"][human],
+                    robot=captured["robot"][human], quality=q[human],
+                    difficulty=t.true_diff[hb, hp])
+        classified = sim.queue("tasks.classified").take()
+        if classified is not None:
+            self._score(classified["b"], classified["p"], classified["time"],
+                        classified["p_ok"])
+
+    def _score(self, b: np.ndarray, p: np.ndarray, time: np.ndarray, p_ok: np.ndarray) -> None:
+        """A classification of POI p at `time` that succeeds with probability p_ok."""
+        t = self.state
+        points = tables.POINTS[t.true_diff[b, p]]
+        t.classified_at[b, p] = time
+        t.gain[b, p] = np.where(t.outcome_u[b, p] < p_ok, points, -points)
+        t.expected_gain[b, p] = tables.expected_points(points, p_ok)
+
+    @hookimpl
+    def ata_advance(self, sim: SimState, t0: float, t1: float) -> None:
+        self._take_work(sim)
 
     @hookimpl
     def ata_inherent(self, sim: SimState, inherent: Observation) -> None:
-        t = sim.group("tasks")
+        self._take_work(sim)
+        t = self.state
         feats = np.stack([t.pos[..., 0] / t.area_m, t.pos[..., 1] / t.area_m,
                           t.est_kind, t.est_diff, tables.POINTS[t.est_diff]], axis=-1)
         inherent.add("tasks", TASK_INHERENT, feats.astype(np.float64))
@@ -65,7 +125,8 @@ class PoiTaskModel:
 
     @hookimpl
     def ata_observe(self, sim: SimState, obs: Observation) -> None:
-        t, now = sim.group("tasks"), sim.now
+        self._take_work(sim)
+        t, now = self.state, sim.now
         captured = t.capture_time <= now
         classified = t.classified_at <= now
         revealed = (t.reveal_time <= now) | captured
@@ -77,7 +138,8 @@ class PoiTaskModel:
 
     @hookimpl
     def ata_epoch_end(self, sim: SimState, epoch: int) -> None:
-        t, clock = sim.group("tasks"), sim.clock
+        self._take_work(sim)
+        t, clock = self.state, sim.clock
         start, end = epoch * clock.epoch_s, (epoch + 1) * clock.epoch_s
         done = (t.classified_at >= start) & (t.classified_at < end)
         sim.record.r_perf[:, epoch] = np.where(done, t.gain, 0.0).sum(axis=1)
@@ -85,7 +147,8 @@ class PoiTaskModel:
 
     @hookimpl
     def ata_episode_end(self, sim: SimState) -> None:
-        t = sim.group("tasks")
+        self._take_work(sim)
+        t = self.state
         sim.record.upper_bound[:] = upper_bound(sim)
         classified = t.classified_at < sim.clock.horizon_s
         sim.record.task_gain = np.where(classified, t.gain, 0.0)

@@ -127,7 +127,8 @@ class Recorder:
 
     @hookimpl(trylast=True)
     def ata_episode_end(self, sim: SimState) -> None:
-        self.final = {name: {k: np.array(v, copy=True) for k, v in vars(sim.group(name)).items()}
+        self.final = {name: {k: np.array(v, copy=True)
+                             for k, v in sim.group(name).as_dict().items()}
                       for name in ("tasks", "robots", "humans")}
 
 

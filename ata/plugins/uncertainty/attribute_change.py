@@ -1,5 +1,6 @@
 """Task attribute change: with probability p a POI's true kind or difficulty differs from the
-satellite estimate; the truth shows at a uniform random time, or at capture if sooner."""
+satellite estimate; the truth shows at a uniform random time, or at capture if sooner. The
+changes go to the task model through the queue ``tasks.attribute_change``."""
 
 from __future__ import annotations
 
@@ -35,9 +36,10 @@ class AttributeChange:
         shift = 1 + sim.rng.integers("attribute_change.diff", 0, 2, (P,))
         flip = sim.rng.uniform("attribute_change.kind", 0, (P,)) < self.kind_flip
         when = sim.rng.uniform("attribute_change.time", 0, (P,)) * sim.clock.horizon_s
-        t.true_diff = np.where(changed, (t.est_diff + shift) % 3, t.est_diff)
-        t.true_kind = np.where(changed & flip, 1 - t.est_kind, t.est_kind)
-        t.reveal_time = np.where(changed, when, np.inf)
+        b, p = np.nonzero(changed)
+        sim.queue("tasks.attribute_change").put(
+            b=b, p=p, difficulty=(t.est_diff[b, p] + shift[b, p]) % 3,
+            kind=np.where(flip[b, p], 1 - t.est_kind[b, p], t.est_kind[b, p]), reveal=when[b, p])
         self.changed = changed
 
     @hookimpl

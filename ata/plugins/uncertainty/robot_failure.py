@@ -1,4 +1,5 @@
-"""Robot failure: with probability p a robot stops for good at a uniform random time."""
+"""Robot failure: with probability p a robot stops for good at a uniform random time (sent to
+the robot model through the queue ``robots.failure``)."""
 
 from __future__ import annotations
 
@@ -26,10 +27,11 @@ class RobotFailure:
 
     @hookimpl
     def ata_setup(self, sim: SimState) -> None:
-        r, R = sim.group("robots"), sim.sizes.robots
+        R = sim.sizes.robots
         fails = sim.rng.uniform("robot_failure.event", 0, (R,)) < self.p
         when = sim.rng.uniform("robot_failure.time", 0, (R,)) * sim.clock.horizon_s
-        r.fail_time = np.where(fails, when, np.inf)
+        b, r = np.nonzero(fails)
+        sim.queue("robots.failure").put(b=b, r=r, time=when[b, r])
 
 
 @hookimpl
