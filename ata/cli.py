@@ -60,10 +60,10 @@ PluginsOption = typer.Option(None, "--plugins", metavar="NAME[,NAME]",
 
 
 class SpeedColumn(ProgressColumn):
-    """Scenario-epochs simulated per second."""
+    """Scenarios simulated per second."""
 
     def render(self, task) -> Text:
-        return Text(f"{task.speed or 0:,.0f} scenario-epochs/s", style="cyan")
+        return Text(f"{task.speed or 0:,.1f} scenarios/s", style="cyan")
 
 
 def user_errors(func: Callable) -> Callable:
@@ -134,37 +134,48 @@ def run(mission: Optional[str] = typer.Argument(
                                            help="Run folder (default: runs/NAME-TIME)."),
         workers: Optional[int] = typer.Option(None, "--workers", "-w", min=1, metavar="N",
                                               help="Worker processes (default: the mission's)."),
+        executor: Optional[str] = typer.Option(None, "--executor", "-e", metavar="NAME",
+                                               help="serial, process or ray (default: serial "
+                                                    "for one worker, else process)."),
+        address: Optional[str] = typer.Option(None, "--address", metavar="ADDRESS",
+                                              help="Ray cluster address (default: "
+                                                   "$RAY_ADDRESS, else a local Ray)."),
         force: bool = typer.Option(False, "--force",
                                    help="Start over in an --out folder that holds the results "
                                         "of another run."),
         quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar.")) -> None:
     """Run a mission and print its summary; write results beside the resolved mission.
 
-    Each finished batch is saved in the run folder as it ends: rerun the same command with the
-    same --out to go on after an interruption (only what is missing runs)."""
+    The run is a plan of one job on the chunked runner of `ata eval`. Each finished batch is
+    saved in the run folder as it ends: rerun the same command with the same --out to go on
+    after an interruption (only what is missing runs)."""
     from ata.experiment import runner
+    from ata.experiment.executors import make_executor
     from ata.experiment.runlog import RunLog
+    from ata.experiment.units import chunks_of
 
     session = runner.load_session(mission, set_ or [], _split(plugins))
     m = session.mission
-    # the components are built (checkpoints read) and the output folder is made and checked
-    # before any scenario runs
+    workers = workers or m.settings.workers
+    # the executor is checked, the components are built (checkpoints read) and the output
+    # folder is made and checked before any scenario runs
+    pool = make_executor(executor or ("serial" if workers <= 1 else "process"), workers,
+                         address)
     runner.build_once(m, session.registry)
     out_dir = runner.prepare_out_dir(out) if out else runner.default_out_dir(m)
-    chunks = runner.chunks_of(m, workers or m.settings.workers)
+    chunks = chunks_of(m, workers)
     log = RunLog(out_dir, runner.plan_key(session, chunks), len(chunks), force=force,
                  describe={"mission": m.settings.name, "scenarios": m.settings.scenarios})
     _say_resuming(log, out_dir, "batches")
-    total = m.settings.scenarios * m.clock.n_epochs
-    done = sum(int(p["scenario"].size) for p in log.done.values()) * m.clock.n_epochs
+    done = sum(int(p["scenario"].size) for p in log.done.values())
     columns = [TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
                SpeedColumn(), TimeElapsedColumn(), TimeRemainingColumn()]
     try:
-        with Progress(*columns, console=Console(stderr=True), disable=quiet) as progress:
+        with pool, Progress(*columns, console=Console(stderr=True), disable=quiet) as progress:
             task = progress.add_task(f"{m.settings.name}: {m.settings.scenarios} scenarios",
-                                     total=total, completed=done)
+                                     total=m.settings.scenarios, completed=done)
             result = runner.run_mission(session, progress=lambda n: progress.advance(task, n),
-                                        workers=workers, log=log, chunks=chunks)
+                                        log=log, chunks=chunks, executor=pool)
     except KeyboardInterrupt:
         raise _interrupted(log, out_dir, "batches") from None
     finally:

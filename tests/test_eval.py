@@ -141,6 +141,34 @@ def test_rows_identical_across_executors_and_chunks(suite):
     assert without_wall(_rows(ProcessExecutor(2), suite, chunk_size=3)) == without_wall(serial)
 
 
+def test_run_is_a_one_job_plan_of_the_eval_runner(cli, tmp_path, monkeypatch):
+    """`ata run` and `ata eval` go through the same units (ata.experiment.units.run_unit): the
+    same scenarios give the same rows on every executor and chunking."""
+    from ata.experiment import units
+
+    seen = []
+    real = units.run_unit
+    monkeypatch.setattr(units, "run_unit", lambda unit, **kw: seen.append(unit) or real(unit, **kw))
+    _, jobs = ev.plan([str(BASELINE_MISSION)], scenarios=6)
+    evaluated = ev.evaluate(jobs, SerialExecutor(), chunk_size=4).rows
+    assert [u.ids.size for u in seen] == [4, 2]
+    seen.clear()
+    session = jobs[0].session
+    result = run_mission(session)                       # serial: one batch, in this process
+    assert [u.ids.size for u in seen] == [6]
+    monkeypatch.setattr(units, "run_unit", real)        # a worker must find it by name
+    with ProcessExecutor(2) as executor:
+        parallel = run_mission(session, workers=2, executor=executor)
+    for r in (result, parallel):
+        assert r.scenario.tolist() == [row["scenario"] for row in evaluated]
+        assert r.total.tolist() == [row["score"] for row in evaluated]
+    out = tmp_path / "run"
+    res = cli("run", BASELINE_MISSION, "--set", "mission.scenarios=3", "-e", "bogus",
+              "-o", out, "-q")
+    assert res.exit_code == 2 and "unknown executor 'bogus'" in res.output
+    assert not (out / "plan.json").exists()
+
+
 @pytest.mark.ray
 def test_rows_identical_on_ray(suite):
     pytest.importorskip("ray")

@@ -12,6 +12,7 @@ import pytest
 from _support import assert_user_error, flat
 from ata.experiment import runner
 from ata.core.kernel import Simulation
+from ata.experiment.units import run_batch
 from ata.plugins import tables
 from ata.viz.record import RIGHT, WRONG, Episode, Recorder, replay
 
@@ -60,7 +61,7 @@ def test_recording_off_records_nothing_and_never_runs(small, monkeypatch):
     assert simulation.sim.trace is None
     assert simulation.pm.get_plugin("recorder") is None
     assert not any(isinstance(p, Recorder) for p in simulation.pm.get_plugins())
-    runner.run_batch(small.mission, small.registry, np.arange(4))
+    run_batch(small.mission, small.registry, np.arange(4))
 
 
 def test_recording_leaves_results_bit_identical(small, recorded):
@@ -180,7 +181,7 @@ def test_a_replay_is_the_scenario_of_a_batch(mission):
     """A scenario replayed alone scores what it scored in a batch, for greedy and ATA-HRL."""
     path = runner.BASELINE_MISSION if mission == "greedy" else runner.BUILTIN_MISSION
     s = runner.load_session(str(path))
-    batch = runner.run_batch(s.mission, s.registry, np.arange(2))
+    batch = run_batch(s.mission, s.registry, np.arange(2))
     ep = replay(s.mission, s.registry, 1)
     assert ep.score == batch["total"][1]
     assert ep.upper_bound == batch["upper_bound"][1]

@@ -18,7 +18,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -31,13 +30,11 @@ from ata.core import mission as mission_mod
 from ata.core.errors import MissionError
 from ata.core.kernel import Simulation
 from ata.core.mission import UNCERTAINTY_LEVELS, Mission
-from ata.core.registry import collect_components, get_plugin_manager
 from ata.experiment import runlog
-from ata.experiment.cache import run_cache
 from ata.experiment.executors import Executor
 from ata.experiment.heldout import EVAL_FIRST_SCENARIO
-from ata.experiment.runner import (Session, build_once, load_session, one_worker, run_batch,
-                                   scenario_ids, stamped_folder, torch_one_thread)
+from ata.experiment.runner import Session, build_once, load_session, stamped_folder
+from ata.experiment.units import Unit, fixed_chunks, make_units, run_units, scenario_ids
 
 DEFAULT_SCENARIOS = 500
 """Scenarios per (method, setting, level) when neither the suite nor the command says."""
@@ -345,39 +342,13 @@ def _validate_job(job: Job) -> None:
 
 
 # -- work units ---------------------------------------------------------------------------------
-@dataclass
-class Unit:
-    """A chunk of one job's scenario ids: what a worker runs."""
-
-    job: int
-    mission: Mission
-    ids: np.ndarray
-    cache: str | None = None
-    parallel: bool = False
-
-
-def make_units(jobs: list[Job], chunk_size: int, cache: str | Path | None = None,
-               parallel: bool = False) -> list[Unit]:
-    units = []
-    for j, job in enumerate(jobs):
-        ids = scenario_ids(job.mission)
-        for start in range(0, ids.size, chunk_size):
-            units.append(Unit(j, job.mission, ids[start:start + chunk_size],
-                              str(cache) if cache is not None else None, parallel))
-    return units
-
-
-def run_unit(unit: Unit) -> dict[str, Any]:
-    """Run one unit in a fresh plugin manager (as a worker process must); the result carries
-    the unit's wall time."""
-    t0 = time.perf_counter()
-    mission = one_worker(unit.mission) if unit.parallel else unit.mission
-    pm = get_plugin_manager(optional=mission.settings.plugins)
-    registry = collect_components(pm)
-    with torch_one_thread(), run_cache(unit.cache):
-        out = run_batch(mission, registry, unit.ids)
-    out["wall_s"] = time.perf_counter() - t0
-    return out
+def job_units(jobs: list[Job], chunk_size: int, cache: str | Path | None = None,
+              executor: Executor | None = None) -> list[Unit]:
+    """The plan's work units: each job's scenarios in chunks of `chunk_size`."""
+    return make_units([j.mission for j in jobs],
+                      [fixed_chunks(scenario_ids(j.mission), chunk_size) for j in jobs],
+                      cache=cache, executor=executor,
+                      registries=[j.session.registry for j in jobs])
 
 
 # -- running ------------------------------------------------------------------------------------
@@ -399,29 +370,21 @@ def plan_key(jobs: list[Job], chunk_size: int) -> str:
 
 
 def unit_count(jobs: list[Job], chunk_size: int) -> int:
-    return len(make_units(jobs, chunk_size))
+    return len(job_units(jobs, chunk_size))
 
 
 def evaluate(jobs: list[Job], executor: Executor, *, chunk_size: int = DEFAULT_CHUNK,
              cache: str | Path | None = None,
              progress: Callable[[int], None] | None = None,
              log: runlog.RunLog | None = None) -> EvalResult:
-    """Run every job's scenarios on `executor`; `progress(n)` hears of n more scenarios done.
+    """Run every job's scenarios on `executor` (`ata.experiment.units`, the runner of `ata run`
+    too); `progress(n)` hears of n more scenarios done.
 
     :param log: the output folder's record: units it holds are not run again, and each unit
         is recorded there durably as it finishes.
     """
-    units = make_units(jobs, chunk_size, cache, executor.parallel)
-    parts, todo = runlog.parts_and_todo(log, len(units))
-    t0 = time.perf_counter()
-    for k, out in executor.run(run_unit, [units[i] for i in todo]):
-        i = todo[k]
-        parts[i] = out
-        if log is not None:
-            log.add(i, out)
-        if progress is not None:
-            progress(int(np.asarray(out["scenario"]).size))
-    wall = time.perf_counter() - t0
+    units = job_units(jobs, chunk_size, cache, executor)
+    parts, wall = run_units(units, executor, log=log, progress=progress)
     method_wall: dict[str, float] = {}
     warnings: list[str] = []
     rows: list[dict[str, Any]] = []

@@ -4,16 +4,13 @@ results, summary statistics, and the run folder that makes every number reproduc
 from __future__ import annotations
 
 import contextlib
-import copy
-import dataclasses
 import json
 import math
 import os
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Callable
 
 import numpy as np
 import tomli_w
@@ -25,7 +22,9 @@ from ata.core.kernel import Simulation
 from ata.core.mission import Mission
 from ata.core.registry import Register, collect_components, get_plugin_manager
 from ata.experiment import runlog
+from ata.experiment.executors import Executor, ProcessExecutor, SerialExecutor
 from ata.experiment.heldout import EVAL_FIRST_SCENARIO
+from ata.experiment.units import chunks_of, make_units, run_units
 
 BUILTIN_MISSION = Path(__file__).resolve().parent.parent / "missions" / "default.toml"
 """`ata run`'s default: the full ATA-HRL method with its shipped weights."""
@@ -141,76 +140,11 @@ class RunResult:
         return out
 
 
-def run_batch(mission: Mission, registry: Register, scenario_ids: np.ndarray,
-              on_epoch: Callable[[int], None] | None = None) -> dict[str, np.ndarray]:
-    """Simulate one batch and return its per-scenario arrays."""
-    sim = Simulation(mission, registry, scenario_ids)
-    record = sim.run(on_epoch=on_epoch)
-    out = {"scenario": np.asarray(scenario_ids), "total": record.total,
-           "upper_bound": record.upper_bound.copy(),
-           "reallocations": record.reallocated.sum(axis=1)}
-    out.update({f"m:{k}": np.asarray(v, dtype=float) for k, v in record.metrics.items()})
-    out["warnings"] = list(record.warnings)
-    return out
-
-
 def build_once(mission: Mission, registry: Register) -> Simulation:
     """Build the mission's components once, on its first scenario (as `ata check` does): a
     component that cannot fill its slot, or a checkpoint that cannot be read, fails here,
     before any work starts."""
     return Simulation(mission.replace(scenarios=1), registry, [mission.settings.first_scenario])
-
-
-def one_worker(mission: Mission) -> Mission:
-    """A copy whose components run no process pools of their own (the executor already uses
-    every core): each component setting called `workers` is set to 1. Results are unchanged."""
-    out = None
-    for name, st in mission.component_settings.items():
-        if st is not None and getattr(st, "workers", 1) > 1:
-            out = out or copy.deepcopy(mission)
-            out.component_settings[name] = dataclasses.replace(st, workers=1)
-    return out or mission
-
-
-@contextlib.contextmanager
-def torch_one_thread() -> Iterator[None]:
-    """One torch thread while a unit runs (when torch is loaded), on every executor alike, so
-    that no reduction order depends on where a unit ran."""
-    torch = sys.modules.get("torch")
-    if torch is None:
-        yield
-        return
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(previous)
-
-
-def _worker(args: tuple) -> dict[str, np.ndarray]:
-    """One chunk of `ata run` in a worker process: a fresh plugin manager, no process pool of
-    a component's own, one torch thread (the pool already uses every core)."""
-    mission, ids = args
-    mission = one_worker(mission)
-    pm = get_plugin_manager(optional=mission.settings.plugins)
-    with torch_one_thread():
-        return run_batch(mission, collect_components(pm), ids)
-
-
-def scenario_ids(mission: Mission) -> np.ndarray:
-    s = mission.settings
-    return s.first_scenario + np.arange(s.scenarios, dtype=np.int64)
-
-
-def chunks_of(mission: Mission, workers: int) -> list[np.ndarray]:
-    """The scenario ids in batches of at most batch_size; with several workers, small enough
-    that each worker gets one (a scenario's results do not depend on its batch)."""
-    ids = scenario_ids(mission)
-    size = mission.settings.batch_size
-    if workers > 1:
-        size = max(1, min(size, -(-ids.size // workers)))
-    return [ids[i:i + size] for i in range(0, ids.size, size)]
 
 
 def plan_key(session: Session, chunks: list[np.ndarray]) -> str:
@@ -220,47 +154,34 @@ def plan_key(session: Session, chunks: list[np.ndarray]) -> str:
                             "chunks": [[int(c[0]), int(c.size)] for c in chunks]})
 
 
-def run_mission(session: Session, progress: Callable[[int], None] | None = None,
+def run_mission(session: Session, progress: Callable[[float], None] | None = None,
                 workers: int | None = None, log: runlog.RunLog | None = None,
-                chunks: list[np.ndarray] | None = None) -> RunResult:
-    """Run every scenario of the mission; `progress(n)` is told of n more scenario-epochs done.
+                chunks: list[np.ndarray] | None = None,
+                executor: Executor | None = None) -> RunResult:
+    """Run every scenario of the mission: a plan of one job on the chunked runner of `ata eval`
+    (`ata.experiment.units`); `progress(n)` is told of n more scenarios done.
 
-    Results depend on (seed, scenario index) alone: any batch size or worker count gives the
-    same per-scenario numbers. With several workers the chunks run on the process executor of
-    `ata eval`. With `log` (`ata run`'s output folder), chunks it holds are not run again and
-    each chunk is recorded there as it finishes.
+    Results depend on (seed, scenario index) alone: any batch size, worker count or executor
+    gives the same per-scenario numbers. Without `executor`, one worker runs the chunks here,
+    several run them on a process executor. With `log` (`ata run`'s output folder), chunks it
+    holds are not run again and each chunk is recorded there as it finishes.
     """
-    from ata.experiment.executors import ProcessExecutor
-
     mission = session.mission
     workers = workers or mission.settings.workers
     chunks = chunks if chunks is not None else chunks_of(mission, workers)
-    n_epochs = mission.clock.n_epochs
-    parts, todo = runlog.parts_and_todo(log, len(chunks))
-    t0 = time.perf_counter()
-
-    def finished(i: int, part: dict[str, Any]) -> None:
-        parts[i] = part
-        if log is not None:
-            log.add(i, part)
-
-    if workers <= 1:
-        for i in todo:
-            tick = (lambda k, size=chunks[i].size: progress(size)) if progress else None
-            finished(i, run_batch(mission, session.registry, chunks[i], on_epoch=tick))
-    else:
-        with ProcessExecutor(workers) as pool:
-            for k, part in pool.run(_worker, [(mission, chunks[i]) for i in todo]):
-                finished(todo[k], part)
-                if progress is not None:
-                    progress(part["scenario"].size * n_epochs)
-    wall = time.perf_counter() - t0
-    done = [p for p in parts if p is not None]
-    merged = {k: np.concatenate([p[k] for p in done]) for k in done[0] if k != "warnings"}
+    with contextlib.ExitStack() as stack:
+        if executor is None:
+            executor = stack.enter_context(SerialExecutor() if workers <= 1
+                                           else ProcessExecutor(workers))
+        found = make_units([mission], [chunks], executor=executor,
+                           registries=[session.registry])
+        parts, wall = run_units(found, executor, log=log, progress=progress)
+    merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]
+              if k not in ("warnings", "wall_s")}
     return RunResult(scenario=merged["scenario"], total=merged["total"],
                      upper_bound=merged["upper_bound"], reallocations=merged["reallocations"],
                      metrics={k[2:]: v for k, v in merged.items() if k.startswith("m:")},
-                     wall_s=wall, warnings=[w for p in done for w in p["warnings"]])
+                     wall_s=wall, warnings=[w for p in parts for w in p["warnings"]])
 
 
 def mean_ci(values: np.ndarray, z: float = 1.959964) -> tuple[float, float]:

@@ -15,6 +15,7 @@ from pathlib import Path
 from ata.experiment import runner
 from ata.core.errors import MissionError
 from ata.viz import draw
+from ata.experiment.units import scenario_ids
 from ata.viz.record import Episode, replay
 
 RUN_MISSION = "mission.resolved.toml"
@@ -67,7 +68,7 @@ def show(target: str | None, scenario: int | None, overrides: list[str] | None =
     source, run_dir = mission_of(target)
     session = runner.load_session(source, list(overrides or []))
     m = session.mission
-    ids = runner.scenario_ids(m)
+    ids = scenario_ids(m)
     first, last = int(ids[0]), int(ids[-1])
     scenario = first if scenario is None else scenario
     if not first <= scenario <= last:
