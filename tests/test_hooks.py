@@ -1,4 +1,4 @@
-"""Every hook of ata.hookspecs, exercised through small components declared inline in the test.
+"""Every hook of ata.core.hookspecs, exercised through small components declared inline in the test.
 
 In the manner of pluggy's own tests: a fresh plugin manager per test (`get_plugin_manager(extra=
 [...])` with no entry points), small plugins inline, and exact assertions. The built-in task,

@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ata import hookimpl, hookspecs
+from ata import hookimpl
+from ata.core import hookspecs
 from ata.core.state import Allocation
 from ata.core.registry import KINDS
 

@@ -12,7 +12,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 import pluggy
 
-from ata import hookspecs
+from ata.core import hookspecs
 from ata.core.errors import ContractError, MissionError
 from ata.core.mission import SLOT_HOOKS, SLOT_KINDS, Mission
 from ata.core.registry import Register

@@ -17,7 +17,7 @@ from typing import Any, Callable, Iterable
 
 import pluggy
 
-from ata import hookspecs
+from ata.core import hookspecs
 from ata.core.errors import MissionError
 
 KINDS = ("task_model", "human_model", "robot_model", "perturbation", "injector", "reconstructor",

@@ -18,13 +18,12 @@ its POIs is not a hook: it is a setting of the robot model (``[robot] routing``)
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 import pluggy
 
 if TYPE_CHECKING:
-    from ata.core.registry import Register
     from ata.core.state import Allocation, DecisionContext, Observation, SimState
 
 hookspec = pluggy.HookspecMarker("ata")
@@ -33,7 +32,7 @@ hookspec = pluggy.HookspecMarker("ata")
 # --- start-up ---------------------------------------------------------------------------------
 
 @hookspec
-def ata_register_components(register: "Register") -> None:
+def ata_register_components(register: "Callable[[str, str, Any], None]") -> None:
     """Contribute components by name.
 
     :param register: call ``register(kind, name, factory)`` once per component. ``kind`` is one
