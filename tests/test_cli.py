@@ -201,7 +201,7 @@ def test_plugins_lists_the_optional_plugins_unloaded(cli):
     assert "(--plugins trp)" in rows["tr_pomdp policy"]
     assert "(--plugins aux)" in rows["aux reconstructor"]
     assert "(--plugins ctr)" in rows["ctr condition"]
-    assert "not loaded now: ita, ctr, aux, trp" in flat(result.output)
+    assert "not loaded now: aux, ctr, ita, trp" in flat(result.output)
 
 
 @pytest.mark.parametrize("args", [["run", "--help"], ["eval", "--help"], ["report", "--help"],

@@ -240,8 +240,9 @@ def validate(raw: dict[str, Any], registry: Register, source: str = "<built-in>"
 
 def _validate(raw: dict[str, Any], registry: Register, source: str) -> Mission:
     if "train" in raw:
+        trainers = ", ".join(registry.names("trainer")) or "none registered"
         raise MissionError("[train]", None, "the training settings moved to the trainer's own "
-                           "table: name the trainer in [components] trainer (ata_hrl, dqn) and "
+                           f"table: name the trainer in [components] trainer ({trainers}) and "
                            "put its keys in the table of that name (see docs/training.md)")
     for table in ("mission", "components"):
         if table in raw and not isinstance(raw[table], dict):

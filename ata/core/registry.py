@@ -25,33 +25,31 @@ KINDS = ("task_model", "human_model", "robot_model", "perturbation", "injector",
 """Component kinds. A ``policy`` may fill the initial and the reallocation slot; a ``trainer``
 is built by `ata train` only (``ata.training``)."""
 
-BUILTIN_PLUGINS = (
-    "ata.plugins.tasks",
-    "ata.plugins.humans",
-    "ata.plugins.robots",
-    "ata.plugins.uncertainty.fatigue_noise",
-    "ata.plugins.uncertainty.attribute_change",
-    "ata.plugins.uncertainty.robot_failure",
-    "ata.plugins.uncertainty.latency",
-    "ata.plugins.reconstructors",
-    "ata.plugins.conditions",
-    "ata.plugins.policies.random_policy",
-    "ata.plugins.policies.greedy",
-    "ata.plugins.policies.milp",
-    "ata.plugins.policies.keep",
-)
-"""Default-tier plugins, always loaded."""
+BUILTIN_GROUP = "ata.builtin"
+OPTIONAL_GROUP = "ata.optional"
+THIRD_PARTY_GROUP = "ata"
+"""Entry-point groups: the default tier (always loaded), the optional tier (loaded only when
+named: the torch-based learned methods) and third-party packages. The core knows no plugin:
+ata's own are declared in its pyproject.toml like any other package's."""
 
-OPTIONAL_PLUGINS: dict[str, str] = {
-    "ita": "ata.plugins.ata_hrl.ita",
-    "ctr": "ata.plugins.ata_hrl.ctr",
-    "aux": "ata.plugins.ata_hrl.aux",
-    "trp": "ata.plugins.tr_pomdp",
-}
-"""Optional-tier plugins (the torch-based learned methods), loaded only when named."""
 
-OPTIONAL_REQUIRES: dict[str, tuple[str, ...]] = {"ctr": ("ita",), "aux": ("ita",)}
-"""Optional plugins that bring others along (the full method needs its ITA policy)."""
+def _entry_points(group: str) -> dict[str, str]:
+    """name -> module of the entry points of `group`, in the order of their modules."""
+    found = {ep.name: ep.value for ep in metadata.entry_points(group=group)}
+    return dict(sorted(found.items(), key=lambda item: item[1]))
+
+
+BUILTIN_PLUGINS: tuple[str, ...] = tuple(_entry_points(BUILTIN_GROUP).values())
+"""Default-tier plugin modules, always loaded."""
+OPTIONAL_PLUGINS: dict[str, str] = _entry_points(OPTIONAL_GROUP)
+"""Optional-tier plugins, name -> module, loaded only when named."""
+
+
+def requires(name: str) -> tuple[str, ...]:
+    """The optional plugins that optional plugin `name` brings along (its module's
+    ``ATA_REQUIRES``: the full method's parts need its ITA policy)."""
+    module = importlib.import_module(OPTIONAL_PLUGINS[name])
+    return tuple(getattr(module, "ATA_REQUIRES", ()))
 
 
 @dataclass(frozen=True)
@@ -110,21 +108,25 @@ def get_plugin_manager(*, optional: Iterable[str] = (), entry_points: bool = Tru
     """Build a fresh plugin manager: specs, built-ins, optional ones, entry points, extras."""
     pm = pluggy.PluginManager("ata")
     pm.add_hookspecs(hookspecs)
+    if not BUILTIN_PLUGINS:
+        raise MissionError("", None, "ata's built-in plugins are not registered (no entry "
+                           f"points in the group {BUILTIN_GROUP!r}): install the package, "
+                           "e.g. pip install -e .")
     for module in BUILTIN_PLUGINS:
         pm.register(importlib.import_module(module), name=module)
     wanted: list[str] = []
     for name in optional:
-        wanted += [*OPTIONAL_REQUIRES.get(name, ()), name]
-    for name in dict.fromkeys(wanted):
         if name not in OPTIONAL_PLUGINS:
             known = ", ".join(sorted(OPTIONAL_PLUGINS)) or "(none yet)"
             raise MissionError("--plugins", None, f"unknown optional plugin {name!r}; "
                                f"available: {known}")
+        wanted += [*requires(name), name]
+    for name in dict.fromkeys(wanted):
         module = OPTIONAL_PLUGINS[name]
         if pm.get_plugin(module) is None:
             pm.register(importlib.import_module(module), name=module)
     if entry_points:
-        pm.load_setuptools_entrypoints("ata")
+        pm.load_setuptools_entrypoints(THIRD_PARTY_GROUP)
     for plugin in extra:
         pm.register(plugin)
     _check_pending(pm)

@@ -68,10 +68,11 @@ def load_session(path: str | None = None, overrides: list[str] | None = None,
 
 def closure(plugins: list[str]) -> frozenset[str]:
     """A set of optional plugins with those they bring along (ctr and aux bring ita)."""
-    from ata.core.registry import OPTIONAL_REQUIRES
+    from ata.core.registry import OPTIONAL_PLUGINS, requires
     out = set(plugins)
     for name in plugins:
-        out |= set(OPTIONAL_REQUIRES.get(name, ()))
+        if name in OPTIONAL_PLUGINS:
+            out |= set(requires(name))
     return frozenset(out)
 
 
