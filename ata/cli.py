@@ -140,6 +140,10 @@ def run(mission: Optional[str] = typer.Argument(
         address: Optional[str] = typer.Option(None, "--address", metavar="ADDRESS",
                                               help="Ray cluster address (default: "
                                                    "$RAY_ADDRESS, else a local Ray)."),
+        cache: Optional[Path] = typer.Option(None, "--cache", metavar="DIR",
+                                             help="Cache folder for results that depend on the "
+                                                  "scenario alone (MILP initial allocations; "
+                                                  "default: none)."),
         force: bool = typer.Option(False, "--force",
                                    help="Start over in an --out folder that holds the results "
                                         "of another run."),
@@ -175,7 +179,7 @@ def run(mission: Optional[str] = typer.Argument(
             task = progress.add_task(f"{m.settings.name}: {m.settings.scenarios} scenarios",
                                      total=m.settings.scenarios, completed=done)
             result = runner.run_mission(session, progress=lambda n: progress.advance(task, n),
-                                        log=log, chunks=chunks, executor=pool)
+                                        log=log, chunks=chunks, executor=pool, cache=cache)
     except KeyboardInterrupt:
         raise _interrupted(log, out_dir, "batches") from None
     finally:

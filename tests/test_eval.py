@@ -489,3 +489,16 @@ def test_report_reads_several_evaluations_together(cli, tmp_path):
     assert res.exit_code == 0 and (tmp_path / "one" / "report.md").exists()
     res = cli("report", tmp_path / "one", tmp_path / "one", "--no-figures")
     assert res.exit_code == 2 and "appears twice" in flat(res.output)
+
+
+def test_run_takes_a_cache_folder_too(cli, tmp_path):
+    mission = ROOT / "examples" / "missions" / "milp_a.toml"
+    cache = tmp_path / "milp-cache"
+    scores = []
+    for i, flags in enumerate(([], ["--cache", cache], ["--cache", cache])):
+        out = tmp_path / f"run{i}"
+        res = cli("run", mission, "--set", "mission.scenarios=2", "-o", out, "-q", *flags)
+        assert res.exit_code == 0, res.output
+        scores.append([r["score"] for r in read_csv(out / "results.csv")[1]])
+        assert len(list(cache.rglob("*.json"))) == (0 if i == 0 else 2)
+    assert scores[0] == scores[1] == scores[2]

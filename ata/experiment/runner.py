@@ -158,14 +158,15 @@ def plan_key(session: Session, chunks: list[np.ndarray]) -> str:
 def run_mission(session: Session, progress: Callable[[float], None] | None = None,
                 workers: int | None = None, log: runlog.RunLog | None = None,
                 chunks: list[np.ndarray] | None = None,
-                executor: Executor | None = None) -> RunResult:
+                executor: Executor | None = None, cache: str | Path | None = None) -> RunResult:
     """Run every scenario of the mission: a plan of one job on the chunked runner of `ata eval`
     (`ata.experiment.units`); `progress(n)` is told of n more scenarios done.
 
     Results depend on (seed, scenario index) alone: any batch size, worker count or executor
     gives the same per-scenario numbers. Without `executor`, one worker runs the chunks here,
     several run them on a process executor. With `log` (`ata run`'s output folder), chunks it
-    holds are not run again and each chunk is recorded there as it finishes.
+    holds are not run again and each chunk is recorded there as it finishes. `cache` is the
+    run's cache folder (`ata.experiment.cache`; None: none).
     """
     mission = session.mission
     workers = workers or mission.settings.workers
@@ -174,7 +175,7 @@ def run_mission(session: Session, progress: Callable[[float], None] | None = Non
         if executor is None:
             executor = stack.enter_context(SerialExecutor() if workers <= 1
                                            else ProcessExecutor(workers))
-        found = make_units([mission], [chunks], executor=executor,
+        found = make_units([mission], [chunks], cache=cache, executor=executor,
                            registries=[session.registry])
         parts, wall = run_units(found, executor, log=log, progress=progress)
     merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]
