@@ -250,6 +250,15 @@ class Queue:
         return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
 
+def scatter(state: Any, rows: dict[str, np.ndarray], at: tuple[str, ...],
+            columns: dict[str, str]) -> None:
+    """Write taken queue rows into the owner's arrays: ``state.FIELD[rows[at]] = rows[COLUMN]``
+    for each FIELD -> COLUMN of `columns` (`at` names the index columns, e.g. ("b", "p"))."""
+    index = tuple(rows[k] for k in at)
+    for name, column in columns.items():
+        getattr(state, name)[index] = rows[column]
+
+
 def last_per_key(*keys: np.ndarray) -> np.ndarray:
     """Indices of the last row of each distinct key (rows taken in order: the latest wins)."""
     n = keys[0].shape[0]

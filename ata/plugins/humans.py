@@ -28,7 +28,7 @@ import numpy as np
 
 from ata import hookimpl
 from ata.core.settings import param
-from ata.core.state import Allocation, Observation, SimState, last_per_key
+from ata.core.state import Allocation, Observation, SimState, last_per_key, scatter
 from ata.plugins import tables
 
 HUMAN_INHERENT = ("cognitive", "expertise", "skill")
@@ -149,20 +149,15 @@ class HumanModel:
         h = self.state
         cls = sim.queue("humans.classify").take()
         if cls is not None:
-            b, p = cls["b"], cls["p"]
-            h.cls_ready[b, p] = cls["ready"]
-            h.cls_human[b, p] = cls["human"]
-            h.cls_robot[b, p] = cls["robot"]
-            h.cls_quality[b, p] = cls["quality"]
-            h.cls_diff[b, p] = cls["difficulty"]
+            scatter(h, cls, ("b", "p"), {"cls_ready": "ready", "cls_human": "human",
+                                         "cls_robot": "robot", "cls_quality": "quality",
+                                         "cls_diff": "difficulty"})
         nav = sim.queue("humans.navigate").take()
         if nav is not None:
             last = last_per_key(nav["b"], nav["r"])      # a later request replaces an earlier
-            b, r = nav["b"][last], nav["r"][last]
-            h.nav_ready[b, r] = nav["ready"][last]
-            h.nav_human[b, r] = nav["human"][last]
-            h.nav_duration[b, r] = nav["duration"][last]
-            h.nav_deadline[b, r] = nav["deadline"][last]
+            scatter(h, {k: v[last] for k, v in nav.items()}, ("b", "r"),
+                    {"nav_ready": "ready", "nav_human": "human", "nav_duration": "duration",
+                     "nav_deadline": "deadline"})
 
     @hookimpl
     def ata_advance(self, sim: SimState, t0: float, t1: float) -> None:

@@ -24,7 +24,7 @@ import numpy as np
 
 from ata import hookimpl
 from ata.core.settings import param
-from ata.core.state import Allocation, Observation, SimState
+from ata.core.state import Allocation, Observation, SimState, scatter
 from ata.plugins import tables
 from ata.plugins.routing import ROUTINGS
 
@@ -113,13 +113,11 @@ class RobotModel:
         r = self.state
         failures = sim.queue("robots.failure").take()
         if failures is not None:
-            r.fail_time[failures["b"], failures["r"]] = failures["time"]
+            scatter(r, failures, ("b", "r"), {"fail_time": "time"})
         started = sim.queue("robots.leg_started").take()
         if started is not None:
-            b, rr = started["b"], started["r"]
-            r.leg_start[b, rr] = started["begin"]
-            r.leg_end[b, rr] = started["end"]
-            r.nav_ready[b, rr] = np.inf
+            scatter(r, started, ("b", "r"), {"leg_start": "begin", "leg_end": "end"})
+            r.nav_ready[started["b"], started["r"]] = np.inf
 
     def _ask_navigator(self, sim: SimState, b: np.ndarray, rr: np.ndarray) -> None:
         """Tell the human model of robot rr's leg waiting for its navigator (or withdrawn)."""

@@ -19,7 +19,7 @@ import numpy as np
 
 from ata import hookimpl
 from ata.core.settings import param
-from ata.core.state import Observation, SimState
+from ata.core.state import Observation, SimState, scatter
 from ata.plugins import tables
 
 TASK_INHERENT = ("x", "y", "kind", "difficulty", "points")
@@ -77,10 +77,8 @@ class PoiTaskModel:
         t = self.state
         changes = sim.queue("tasks.attribute_change").take()
         if changes is not None:
-            b, p = changes["b"], changes["p"]
-            t.true_kind[b, p] = changes["kind"]
-            t.true_diff[b, p] = changes["difficulty"]
-            t.reveal_time[b, p] = changes["reveal"]
+            scatter(t, changes, ("b", "p"), {"true_kind": "kind", "true_diff": "difficulty",
+                                             "reveal_time": "reveal"})
         captured = sim.queue("tasks.captured").take()
         if captured is not None:
             b, p, te, q = captured["b"], captured["p"], captured["time"], captured["quality"]
