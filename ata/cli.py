@@ -180,6 +180,7 @@ def run(mission: Optional[str] = typer.Argument(
                                      total=m.settings.scenarios, completed=done)
             result = runner.run_mission(session, progress=lambda n: progress.advance(task, n),
                                         log=log, chunks=chunks, executor=pool, cache=cache)
+            progress.update(task, completed=m.settings.scenarios)   # no float shortfall
     except KeyboardInterrupt:
         raise _interrupted(log, out_dir, "batches") from None
     finally:
@@ -451,6 +452,7 @@ def eval_(paths: List[str] = typer.Argument(
                                          total=total, completed=done_before)
                 result = ev.evaluate(jobs, pool, chunk_size=chunk_size, cache=cache_dir,
                                      progress=lambda n: progress.advance(task, n), log=log)
+                progress.update(task, completed=total)   # no float shortfall
             described = pool.describe()
     except KeyboardInterrupt:
         raise _interrupted(log, out_dir, "work units") from None
