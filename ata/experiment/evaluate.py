@@ -375,7 +375,7 @@ def unit_count(jobs: list[Job], chunk_size: int) -> int:
 
 def evaluate(jobs: list[Job], executor: Executor, *, chunk_size: int = DEFAULT_CHUNK,
              cache: str | Path | None = None,
-             progress: Callable[[int], None] | None = None,
+             progress: Callable[[float], None] | None = None,
              log: runlog.RunLog | None = None) -> EvalResult:
     """Run every job's scenarios on `executor` (`ata.experiment.units`, the runner of `ata run`
     too); `progress(n)` hears of n more scenarios done.

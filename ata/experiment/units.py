@@ -102,11 +102,6 @@ class Unit:
     parallel: bool = False
     registry: Register | None = None
 
-    def __getstate__(self) -> dict[str, Any]:
-        state = dict(self.__dict__)
-        state["registry"] = None
-        return state
-
 
 def make_units(missions: list[Mission], chunks: list[list[np.ndarray]], *,
                cache: Any = None, executor: Executor | None = None,

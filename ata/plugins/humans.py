@@ -95,21 +95,21 @@ class HumanModel:
         P, R = sim.sizes.tasks, sim.sizes.robots
         theta_c = sim.rng.uniform("humans.theta_c", 0, (H,)) * s.theta_max
         theta_s = sim.rng.uniform("humans.theta_s", 0, (H,)) * s.theta_max
-        zeros = lambda *shape: np.zeros(shape)                      # noqa: E731
-        never = lambda *shape: np.full(shape, np.inf)               # noqa: E731
-        none = lambda *shape: np.full(shape, -1, dtype=np.int64)    # noqa: E731
         self.state = sim.own("humans", HumanState(
             theta_c=theta_c, theta_s=theta_s, eta=np.sin(theta_c), lam=np.sin(theta_s),
             skill=tables.skill_band(theta_s),
             t0_h=sim.rng.uniform("humans.t0", 0, (H,)) * s.t0_max_h,
-            busy_until=zeros(B, H), booked_s=zeros(B, H),
-            busy_ticks=zeros(B, H, sim.clock.n_ticks), sa=np.ones((B, H)), sa_time=zeros(B, H),
-            last_robot=none(B, H), cls_count=zeros(B, H), cls_fatigued=zeros(B, H),
-            cls_u_low=zeros(B, H), cls_u_high=zeros(B, H), rebriefs=zeros(B, H),
-            cls_ready=never(B, P), cls_human=none(B, P), cls_robot=none(B, P),
-            cls_quality=none(B, P), cls_diff=none(B, P),
-            nav_ready=never(B, R), nav_human=none(B, R), nav_duration=zeros(B, R),
-            nav_deadline=never(B, R)))
+            busy_until=np.zeros((B, H)), booked_s=np.zeros((B, H)),
+            busy_ticks=np.zeros((B, H, sim.clock.n_ticks)), sa=np.ones((B, H)),
+            sa_time=np.zeros((B, H)), last_robot=np.full((B, H), -1, dtype=np.int64),
+            cls_count=np.zeros((B, H)), cls_fatigued=np.zeros((B, H)),
+            cls_u_low=np.zeros((B, H)), cls_u_high=np.zeros((B, H)), rebriefs=np.zeros((B, H)),
+            cls_ready=np.full((B, P), np.inf), cls_human=np.full((B, P), -1, dtype=np.int64),
+            cls_robot=np.full((B, P), -1, dtype=np.int64),
+            cls_quality=np.full((B, P), -1, dtype=np.int64),
+            cls_diff=np.full((B, P), -1, dtype=np.int64),
+            nav_ready=np.full((B, R), np.inf), nav_human=np.full((B, R), -1, dtype=np.int64),
+            nav_duration=np.zeros((B, R)), nav_deadline=np.full((B, R), np.inf)))
         self._edges = np.arange(sim.clock.n_ticks) * sim.clock.tick_s
 
     @hookimpl

@@ -19,6 +19,7 @@ capture in hand (``replan_hold``), or at once when the leg it waited for is with
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -47,9 +48,7 @@ class RobotState:
     leg_end: np.ndarray
     leg_from: np.ndarray          # (B, R, 2)
     leg_nav: np.ndarray           # the leg's navigator (-1: autonomous)
-    nav_ready: np.ndarray         # a leg waiting for its human navigator since (inf: none)
-    nav_human: np.ndarray
-    nav_duration: np.ndarray
+    nav_ready: np.ndarray         # a leg waiting for its human navigator (leg_nav) since
     free_at: np.ndarray           # when it may take its next POI
     parked: np.ndarray            # nothing left to visit
     moved_s: np.ndarray           # seconds of finished legs
@@ -94,19 +93,19 @@ class RobotModel:
                                (B, R)).astype(np.int64)
         area = sim.group("tasks").area_m
         pos = np.full((B, R, 2), area / 2.0)
-        never = np.full((B, R), np.inf)
-        none = np.full((B, R), -1, dtype=np.int64)
-        zeros = np.zeros((B, R))
         self.state = sim.own("robots", RobotState(
             area_m=area, type=kind,
             speed=np.where(kind == tables.UAV, s.uav_speed, s.ugv_speed).astype(float),
-            pos=pos, failed=np.zeros((B, R), dtype=bool), fail_time=never.copy(),
-            target=none.copy(), leg_start=never.copy(), leg_end=never.copy(),
-            leg_from=pos.copy(), leg_nav=none.copy(), nav_ready=never.copy(),
-            nav_human=none.copy(), nav_duration=zeros.copy(), free_at=zeros.copy(),
-            parked=np.zeros((B, R), dtype=bool), moved_s=zeros.copy(),
-            moved_at_epoch=zeros.copy(), idleness=np.ones((B, R)), replan_hold=zeros.copy(),
-            replans=zeros.copy(), visited=np.zeros((B, sim.sizes.tasks), dtype=bool)))
+            pos=pos, failed=np.zeros((B, R), dtype=bool), fail_time=np.full((B, R), np.inf),
+            target=np.full((B, R), -1, dtype=np.int64),
+            leg_start=np.full((B, R), np.inf),
+            leg_end=np.full((B, R), np.inf), leg_from=pos.copy(),
+            leg_nav=np.full((B, R), -1, dtype=np.int64),
+            nav_ready=np.full((B, R), np.inf), free_at=np.zeros((B, R)),
+            parked=np.zeros((B, R), dtype=bool), moved_s=np.zeros((B, R)),
+            moved_at_epoch=np.zeros((B, R)), idleness=np.ones((B, R)),
+            replan_hold=np.zeros((B, R)), replans=np.zeros((B, R)),
+            visited=np.zeros((B, sim.sizes.tasks), dtype=bool)))
 
     def _take_work(self, sim: SimState) -> None:
         """Apply what the queues hold: failures drawn at set-up, legs a navigator started."""
@@ -119,14 +118,20 @@ class RobotModel:
             scatter(r, started, ("b", "r"), {"leg_start": "begin", "leg_end": "end"})
             r.nav_ready[started["b"], started["r"]] = np.inf
 
-    def _ask_navigator(self, sim: SimState, b: np.ndarray, rr: np.ndarray) -> None:
-        """Tell the human model of robot rr's leg waiting for its navigator (or withdrawn)."""
-        r = self.state
+    def _ask_navigator(self, sim: SimState, b: np.ndarray, rr: np.ndarray, ready: Any,
+                       human: Any, duration: Any) -> None:
+        """Tell the human model of robot rr's leg waiting for its navigator from `ready`
+        (``ready = inf``: the leg is withdrawn)."""
         if b.size:
-            sim.queue("humans.navigate").put(b=b, r=rr, ready=r.nav_ready[b, rr],
-                                             human=r.nav_human[b, rr],
-                                             duration=r.nav_duration[b, rr],
-                                             deadline=r.fail_time[b, rr])
+            sim.queue("humans.navigate").put(b=b, r=rr, ready=ready, human=human,
+                                             duration=duration,
+                                             deadline=self.state.fail_time[b, rr])
+
+    def _withdraw_navigation(self, sim: SimState, waiting: np.ndarray) -> None:
+        """Withdraw the legs of the robots in `waiting` ((B, R) bool) from their navigators."""
+        b, rr = np.nonzero(waiting)
+        self.state.nav_ready[b, rr] = np.inf
+        self._ask_navigator(sim, b, rr, np.inf, -1, 0.0)
 
     @hookimpl
     def ata_inherent(self, sim: SimState, inherent: Observation) -> None:
@@ -178,14 +183,10 @@ class RobotModel:
         on_leg = out & np.isfinite(r.leg_start)
         if charge and out.any():
             before = np.where(on_leg, self._next_after_leg(sim, on_leg, previous), r.target)
-        waiting = np.isfinite(r.nav_ready) | ((r.target >= 0) & ~np.isfinite(r.leg_start))
-        cancel = waiting & np.take_along_axis(changed, np.maximum(r.target, 0), axis=1) \
-            & (r.target >= 0)
+        waiting = (r.target >= 0) & ~np.isfinite(r.leg_start)   # for its navigator, or to go
+        cancel = waiting & np.take_along_axis(changed, np.maximum(r.target, 0), axis=1)
         r.target[cancel] = -1
-        withdrawn = cancel & np.isfinite(r.nav_ready)
-        r.nav_ready[cancel] = np.inf
-        r.nav_human[cancel] = -1
-        self._ask_navigator(sim, *np.nonzero(withdrawn))
+        self._withdraw_navigation(sim, cancel & np.isfinite(r.nav_ready))
         r.free_at = np.where(cancel, np.maximum(r.free_at, sim.now), r.free_at)
         r.parked &= ~changed.any(axis=1)[:, None]
         if not (charge and out.any()):
@@ -256,10 +257,9 @@ class RobotModel:
         r.target[b, rr] = -1
         r.leg_start[b, rr] = np.inf
         r.leg_end[b, rr] = np.inf
-        waiting = np.isfinite(r.nav_ready[b, rr])
-        r.nav_ready[b, rr] = np.inf
-        r.nav_human[b, rr] = -1
-        self._ask_navigator(sim, b[waiting], rr[waiting])
+        waiting = np.zeros(r.nav_ready.shape, dtype=bool)
+        waiting[b, rr] = np.isfinite(r.nav_ready[b, rr])
+        self._withdraw_navigation(sim, waiting)
         for i in range(b.size if sim.trace is not None else 0):
             sim.log("fail", float(ft[i]), int(b[i]), int(rr[i]))
 
@@ -308,9 +308,7 @@ class RobotModel:
         r.leg_start[b, rr] = np.where(human, np.inf, start)
         r.leg_end[b, rr] = np.where(human, np.inf, start + duration)
         r.nav_ready[b, rr] = np.where(human, start, np.inf)
-        r.nav_human[b, rr] = np.where(human, nav, -1)
-        r.nav_duration[b, rr] = np.where(human, duration, 0.0)
-        self._ask_navigator(sim, b[human], rr[human])
+        self._ask_navigator(sim, b[human], rr[human], start[human], nav[human], duration[human])
         return True
 
     @hookimpl

@@ -120,7 +120,7 @@ class Recorder:
         r = sim.group("robots")
         new = np.isfinite(r.nav_ready) & (r.nav_ready != self._ready)
         for b, rr in zip(*np.nonzero(new)):
-            self.waits.append((int(b), int(rr), int(r.target[b, rr]), int(r.nav_human[b, rr]),
+            self.waits.append((int(b), int(rr), int(r.target[b, rr]), int(r.leg_nav[b, rr]),
                                float(r.nav_ready[b, rr])))
         self._ready = r.nav_ready.copy()
         self._sample(sim, t1)
