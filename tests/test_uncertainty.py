@@ -315,3 +315,41 @@ def test_robot_failure_setting_and_custom_level():
     t = sim.sim.groups["tasks"]
     changed = (t.true_kind != t.est_kind) | (t.true_diff != t.est_diff)
     check_rate(int(changed.sum()), changed.size, 0.3, [0.2, 0.4], "custom event probability")
+
+
+def test_reallocatable_is_observed_and_the_kernel_keeps_what_truly_cannot_change():
+    # under latency a policy sees which POIs are reallocatable as observed: a stale task row
+    # shows the POI as open or not as it was at the previous epoch. A POI truly captured (or
+    # with a leg under way) keeps its triple whatever a policy proposes for it.
+    B = 64
+    s = load_session(str(BASELINE_MISSION), [
+        f"mission.scenarios={B}", f"mission.batch_size={B}", "mission.uncertainty='high'",
+        "components.initial='random'", "components.condition='always'",
+        "components.reallocation='random'"])
+    sim = Simulation(s.mission, s.registry, np.arange(B))
+    sim.reset()
+    sim.step_epoch()
+    previous_open = sim.last_context.reallocatable.copy()
+    seen_stale_open = kept_against_proposal = 0
+    for _ in range(12):
+        ctx = sim.begin_epoch()
+        truth, observed = sim.last_truth, ctx.observed
+        stale = observed.extras["stale_tasks"]
+        fresh = ~stale
+        # a fresh row's reallocatable is the truth; a stale one is the last epoch's observation
+        assert np.array_equal(ctx.reallocatable[fresh], truth.reallocatable[fresh])
+        assert np.array_equal(ctx.reallocatable[stale], previous_open[stale])
+        seen_stale_open += int((ctx.reallocatable & ~truth.reallocatable).sum())
+        # propose a change of every POI the policy sees as open: a new robot for each
+        proposal = ctx.previous.copy()
+        proposal.robot[:] = (ctx.previous.robot + 1) % sim.sim.sizes.robots
+        before = ctx.previous.copy()
+        sim.end_epoch(proposal, np.ones(B, bool))
+        after = sim.sim.allocation
+        locked = ~truth.reallocatable
+        assert np.array_equal(after.robot[locked], before.robot[locked])
+        kept_against_proposal += int((ctx.reallocatable & locked).sum())
+        both = ctx.reallocatable & truth.reallocatable
+        assert np.array_equal(after.robot[both], proposal.robot[both])
+        previous_open = ctx.reallocatable.copy()
+    assert seen_stale_open > 0 and kept_against_proposal > 0

@@ -102,8 +102,10 @@ def ata_should_reallocate(ctx: "DecisionContext") -> np.ndarray:
 def ata_reallocate(ctx: "DecisionContext", active: np.ndarray) -> "Allocation":
     """Return the new allocation for the scenarios where ``active`` (B,) holds.
 
-    Only tasks in ``ctx.reallocatable`` may change; the kernel keeps the previous triple for the
-    others and for inactive scenarios. Called on the reallocation component only.
+    Only tasks in ``ctx.reallocatable`` (as observed) may change; the kernel keeps the previous
+    triple for the others, for the tasks that truly may not change (captured, or a leg under way,
+    though a stale observation shows them open) and for inactive scenarios. Called on the
+    reallocation component only.
     """
 
 

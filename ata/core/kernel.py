@@ -107,7 +107,7 @@ class Simulation:
     def _context(self, observed: Observation, truth: Observation,
                  recon: dict[str, np.ndarray]) -> DecisionContext:
         sim = self.sim
-        realloc = truth.reallocatable
+        realloc = observed.reallocatable       # as observed: an injector may make it stale
         if realloc is None:
             realloc = np.ones((sim.batch_size, sim.sizes.tasks), dtype=bool)
         return DecisionContext(epoch=sim.epoch, time=sim.now, sizes=sim.sizes, clock=sim.clock,
@@ -210,7 +210,9 @@ class Simulation:
                                     f"{active.shape}")
             if active.any():
                 proposed = self._check(allocation, "reallocation")
-                allowed = active[:, None] & ctx.reallocatable
+                # what the policy saw as reallocatable and what truly is (a stale observation
+                # may show a captured POI as open: its triple stays, whatever was proposed)
+                allowed = active[:, None] & ctx.reallocatable & self._truly_reallocatable()
                 previous = sim.allocation
                 merged = proposed.where(allowed, previous)
                 changed = ((merged.robot != previous.robot) | (merged.navigator != previous.navigator)
@@ -229,6 +231,14 @@ class Simulation:
         hook.ata_epoch_end(sim=sim, epoch=k)
         sim.epoch = k + 1
         sim.now = sim.epoch * clock.epoch_s
+
+    def _truly_reallocatable(self) -> np.ndarray:
+        """(B, P) bool: the tasks whose triple may change now by the models' rule on the true
+        state (the ``reallocatable`` of the truth observed at the epoch's start)."""
+        truth = self.last_truth
+        if truth is None or truth.reallocatable is None:
+            return np.ones((self.sim.batch_size, self.sim.sizes.tasks), dtype=bool)
+        return truth.reallocatable
 
     def reset(self) -> Observation:
         """Sample the batch and collect the inherent information I."""

@@ -366,7 +366,8 @@ class DecisionContext:
     observed: Observation | None        # S after the injectors (at t = 0 too)
     reconstructed: dict[str, np.ndarray]  # reconstructors' outputs by name
     previous: Allocation | None         # the allocation in force; None at t = 0
-    reallocatable: np.ndarray           # (B, P) bool: tasks whose triple may change now
+    reallocatable: np.ndarray           # (B, P) bool: tasks whose triple may change now, as
+    #                                     observed (S): under latency a POI's row may be stale
     rng: BatchRNG
     params: dict[str, Any] = field(default_factory=dict)
 

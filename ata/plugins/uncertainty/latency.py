@@ -1,5 +1,7 @@
 """Latency: each robot's and each task's observed row is, with probability p, the one observed
-at the previous epoch. Human states have no latency (the humans are on site)."""
+at the previous epoch. Human states have no latency (the humans are on site). A task whose row is
+stale is seen as reallocatable or not as it was at the previous epoch too (whether it had been
+captured, whether a robot was on its way to it): the observation's ``reallocatable``."""
 
 from __future__ import annotations
 
@@ -27,6 +29,7 @@ class Latency:
                   else mission.event_probability)
         self.groups = list(settings.groups)
         self.previous: dict[str, np.ndarray] = {}
+        self.previous_open: np.ndarray | None = None    # reallocatable as last observed
 
     @hookimpl
     def ata_inject(self, sim: SimState, obs: Observation) -> None:
@@ -38,7 +41,12 @@ class Latency:
                                         (table.features.shape[1],)) < self.p
                 table.features[:] = np.where(stale[..., None], prev, table.features)
                 obs.extras[f"stale_{group}"] = stale
+                if group == "tasks" and obs.reallocatable is not None \
+                        and self.previous_open is not None:
+                    obs.reallocatable = np.where(stale, self.previous_open, obs.reallocatable)
             self.previous[group] = table.features.copy()
+        if "tasks" in self.groups and obs.reallocatable is not None:
+            self.previous_open = obs.reallocatable.copy()
 
 
 @hookimpl
