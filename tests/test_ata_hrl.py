@@ -355,3 +355,31 @@ def test_reconstructors_beat_the_noisy_and_stale_observations(tmp_path):
     # the stacked GRUs' robot rows are closer to the truth than the stale observed rows
     assert after["robots_mse"] < after["robots_mse_raw"]
     assert after["fatigue_mse"] < before["fatigue_mse"]
+
+
+def test_the_trainer_cycles_through_uncertainty_levels_and_validates_on_each(tmp_path,
+                                                                               monkeypatch):
+    from ata.core.mission import UNCERTAINTY_LEVELS
+    from ata.plugins.ata_hrl.trainer import ATAHRLTrainer
+    seen = []
+    real = ATAHRLTrainer.rollout
+
+    def spy(self, mission, ids, phase, train):
+        seen.append((train, mission.settings.uncertainty, mission.event_probability,
+                     mission.fatigue_variance))
+        return real(self, mission, ids, phase, train)
+
+    monkeypatch.setattr(ATAHRLTrainer, "rollout", spy)
+    trainer = train(session("ata_hrl.ita_steps=3", "ata_hrl.eval_every=3",
+                            "ata_hrl.eval_scenarios=2", "ata_hrl.batch_size=2",
+                            "ata_hrl.samples=2", "ata_hrl.uncertainty_levels=['low', 'high']",
+                            plugins=("ita",)), tmp_path / "levels")
+    steps = [s[1:] for s in seen if s[0]]
+    low = ("low", *UNCERTAINTY_LEVELS["low"][::-1])       # (level, p, fatigue variance)
+    high = ("high", *UNCERTAINTY_LEVELS["high"][::-1])
+    assert steps == [low, high, low]
+    # each validation (at step 0 and step 3) plays both levels
+    assert [s[1:] for s in seen if not s[0]] == [low, high, low, high]
+    log = (tmp_path / "levels" / "log.csv").read_text().splitlines()
+    assert [row.split(",")[2] for row in log[2:5]] == ["a/low", "a/high", "a/low"]
+    assert trainer.counters["ita"] == 3

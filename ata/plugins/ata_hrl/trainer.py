@@ -67,6 +67,11 @@ class ATAHRLTrainer:
                           f"(validation uses seed + {VALIDATION_SEED_OFFSET})")
         team_settings: list[str] = param(["a"], choices=("a", "b"), help="team settings "
                                          "trained on, in turn (a mixture when several)")
+        uncertainty_levels: list[str] = param([], choices=("none", "low", "medium", "high"),
+                                              help="uncertainty levels trained on in turn, "
+                                              "crossed with team_settings (step k: the k-th "
+                                              "pair, cyclically), and validated on; empty: "
+                                              "the mission's level alone")
         batch_size: int = param(16, min=1, max=4096, help="scenarios per step")
         samples: int = param(8, min=2, max=256, help="samples of each scenario per step (the "
                              "shared baseline is their mean)")
@@ -101,7 +106,8 @@ class ATAHRLTrainer:
         aux_lr: float = param(3e-3, min=0.0, max=1.0, help="Adam learning rate of the "
                               "reconstructors")
         eval_every: int = param(25, min=1, help="held-out validation every N steps")
-        eval_scenarios: int = param(64, min=1, help="validation scenarios per team setting")
+        eval_scenarios: int = param(64, min=1, help="validation scenarios per team setting "
+                                    "(and per uncertainty level, with uncertainty_levels)")
         checkpoint_every: int = param(10, min=1, help="write checkpoint.pt every N steps")
         d_model: int = param(32, min=8, help="embedding width")
         heads: int = param(4, min=1, help="attention heads")
@@ -268,15 +274,28 @@ class ATAHRLTrainer:
 
     # -- missions and components ---------------------------------------------------------------
     def _mission(self, setting: str, seed: int):
+        """The mission of a step or a validation: `setting` is a team setting, or
+        ``SETTING/LEVEL`` with an uncertainty level when ``uncertainty_levels`` mixes them."""
         m = self.mission
+        setting, _, level = setting.partition("/")
         if setting != m.settings.setting and m.settings.setting != "custom":
             from ata.core.mission import TEAM_SETTINGS
             sz = TEAM_SETTINGS[setting]
             m = m.replace(setting=setting, humans=sz.humans, robots=sz.robots, tasks=sz.tasks)
+        if level:
+            from ata.core.mission import UNCERTAINTY_LEVELS
+            variance, p = UNCERTAINTY_LEVELS[level]
+            m = m.replace(uncertainty=level, fatigue_variance=variance, event_probability=p)
         return m.replace(seed=seed)
 
+    def _settings(self) -> list[str]:
+        """What the trainer cycles through and validates on: the team settings, each crossed
+        with the uncertainty levels of ``uncertainty_levels`` (``a/high``) if any."""
+        ts, levels = self.s.team_settings, self.s.uncertainty_levels
+        return [f"{t}/{lv}" for lv in levels for t in ts] if levels else list(ts)
+
     def _setting(self, step: int) -> str:
-        ts = self.s.team_settings
+        ts = self._settings()
         return ts[step % len(ts)]
 
     def _component(self, mission, slot_kind: str, name: str) -> Any:
@@ -332,9 +351,9 @@ class ATAHRLTrainer:
     # -- held-out validation -------------------------------------------------------------------
     def evaluate(self, phase: str) -> tuple[float, float]:
         """(mean total team performance, its expectation) on the validation scenarios of every
-        team setting trained on, each decision by its mode."""
+        team setting (and uncertainty level) trained on, each decision by its mode."""
         totals, expected = [], []
-        for setting in self.s.team_settings:
+        for setting in self._settings():
             mission = self._mission(setting, self.s.seed + VALIDATION_SEED_OFFSET)
             with torch.no_grad():
                 record, _ = self.rollout(mission, np.arange(self.s.eval_scenarios), phase,
