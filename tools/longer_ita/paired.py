@@ -1,0 +1,40 @@
+"""Paired differences within one evaluation: every method against a base method (default the
+suite's first) on the same scenarios, per (setting, level): mean score and the mean difference
++- 1.96 standard errors.
+
+Usage: python tools/longer_ita/paired.py EVAL_DIR [BASE_METHOD]
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+from ata.experiment.report import read_results
+
+
+def main(eval_dir: str, base: str | None = None) -> None:
+    r = read_results(eval_dir)
+    c = r.columns
+    base = base or r.methods[0]
+
+    def scores(method, setting, level):
+        sel = (c["method"] == method) & (c["setting"] == setting) & (c["uncertainty"] == level)
+        d = dict(zip(c["scenario"][sel].tolist(), c["score"][sel]))
+        return np.array([d[i] for i in sorted(d)])
+
+    for setting in r.settings:
+        for level in r.levels:
+            b = scores(base, setting, level)
+            cells = []
+            for m in r.methods:
+                v = scores(m, setting, level)
+                d = v - b
+                se = d.std(ddof=1) / np.sqrt(len(d)) if len(d) > 1 else 0.0
+                cells.append(f"{m} {v.mean():.1f} ({d.mean():+.1f} +- {1.96 * se:.1f})")
+            print(setting, level, " | ".join(cells))
+
+
+if __name__ == "__main__":
+    main(*sys.argv[1:3])
