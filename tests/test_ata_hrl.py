@@ -383,3 +383,17 @@ def test_the_trainer_cycles_through_uncertainty_levels_and_validates_on_each(tmp
     log = (tmp_path / "levels" / "log.csv").read_text().splitlines()
     assert [row.split(",")[2] for row in log[2:5]] == ["a/low", "a/high", "a/low"]
     assert trainer.counters["ita"] == 3
+
+
+def test_a_run_with_no_ctr_step_ends_with_pi_tr_copied_from_its_ita(tmp_path):
+    # ctr_steps = 0 (the shipped recipe: the CTR phase's step 0) must leave pi_TR as a run with
+    # CTR steps starts it, copied from the ITA, not at its random initialisation
+    train(session("ata_hrl.seed=5", plugins=("ita",)), tmp_path / "ita")
+    src = tmp_path / "ita" / "best.pt"
+    train(session(f"ata_hrl.ita_from='{src}'", "ata_hrl.ctr_steps=0"), tmp_path / "step0")
+    for name in ("best.pt", "checkpoint.pt"):
+        model = read_checkpoint(tmp_path / "step0" / name, "ata_hrl")["model"]
+        pairs = [k for k in model if k.startswith(("tr.encoder.", "tr.scorers."))]
+        assert pairs and all(torch.equal(model[k], model["ita." + k[3:]]) for k in pairs), name
+        keep = [k for k in model if k.startswith("tr.keep.linear.")]
+        assert keep and all(not model[k].any() for k in keep), name

@@ -198,6 +198,7 @@ class ATAHRLTrainer:
         report = self.train_aux()
         self.train_policy("ita")
         self.train_policy("ctr")
+        self._tr_at_step_0()
         if not run.best_path.exists():
             self.save("best.pt")
         return {"aux": report, "best_eval": self.best_eval, "wall_s": self.wall,
@@ -226,15 +227,24 @@ class ATAHRLTrainer:
         """pi_TR's encoder and decoder scorers as the ITA's, its state embedding and keep step
         at zero: at the start of the CTR phase pi_TR decodes exactly as the trained ITA (a pure
         function of the ITA's weights, so a resumed run does the same)."""
-        tr, ita = self.net.tr, self.net.ita
-        with torch.no_grad():
-            tr.encoder.load_state_dict(ita.encoder.state_dict())
-            tr.scorers.load_state_dict(ita.scorers.state_dict())
-            tr.auto.copy_(ita.auto)
-            tr.onboard.copy_(ita.onboard)
-            for layer in [*tr.state.values(), tr.keep.out[-1], tr.keep.linear]:
-                torch.nn.init.zeros_(layer.weight)
-                torch.nn.init.zeros_(layer.bias)
+        tr_from_ita(self.net)
+
+    def _tr_at_step_0(self) -> None:
+        """A run with no CTR step (``ctr_steps = 0``) still ends with pi_TR at the CTR phase's
+        step 0, copied from its ITA, in checkpoint.pt and best.pt, as a run with CTR steps
+        starts from it (without this, pi_TR kept its random initialisation)."""
+        if self.phases()["ctr"] != 0 or not (self.trains_tr or self.trains_cond) \
+                or not (self.s.tr_from_ita and self.trains_ita):
+            return
+        self.tr_from_ita()
+        self.save()
+        best = self.run_folder.best_path
+        if best.exists():                  # the ITA phase's best step: the same copy in it
+            data = read_checkpoint(best, KIND)
+            net = net_from_checkpoint(data, best, expect=self.cfg)
+            tr_from_ita(net)
+            data["model"] = net.state_dict()
+            self.run_folder.save(data, "best.pt")
 
     def take_ita(self, spec: str, whole: bool = False) -> None:
         """The ITA network of another ATA-HRL checkpoint (one that trained its ITA), or, with
@@ -658,3 +668,16 @@ def shared_baseline_advantage(reward: np.ndarray, samples: int) -> np.ndarray:
 
 def _is(factory: Any, cls: type | tuple[type, ...]) -> bool:
     return isinstance(factory, type) and issubclass(factory, cls)
+
+
+def tr_from_ita(net) -> None:
+    """pi_TR of `net` as its ITA (see ATAHRLTrainer.tr_from_ita)."""
+    tr, ita = net.tr, net.ita
+    with torch.no_grad():
+        tr.encoder.load_state_dict(ita.encoder.state_dict())
+        tr.scorers.load_state_dict(ita.scorers.state_dict())
+        tr.auto.copy_(ita.auto)
+        tr.onboard.copy_(ita.onboard)
+        for layer in [*tr.state.values(), tr.keep.out[-1], tr.keep.linear]:
+            torch.nn.init.zeros_(layer.weight)
+            torch.nn.init.zeros_(layer.bias)
