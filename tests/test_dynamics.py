@@ -421,3 +421,16 @@ def test_a_human_never_starts_navigating_a_robot_that_has_failed():
     assert obs["humans"].col("sa")[0, 0] == pytest.approx(1.0)
     assert obs["humans"].col("working_time")[0, 0] == pytest.approx(140 / 3600)
     assert perf(sim) == {2: 15.0}
+
+
+def test_expected_score_is_the_score_without_the_outcome_draws():
+    # per scenario, expected_score sums each classification's expected points; over scenarios it
+    # is an unbiased estimate of the score (the draws change nothing else), with less spread
+    from ata.experiment.runner import BASELINE_MISSION, load_session, run_mission
+    r = run_mission(load_session(str(BASELINE_MISSION), ["mission.scenarios=200",
+                                                         "mission.batch_size=200"]))
+    expected, score = r.metrics["expected_score"], r.total
+    diff = score - expected
+    assert abs(diff.mean()) < 4 * diff.std(ddof=1) / np.sqrt(diff.size)
+    assert diff.std() > 1.0                  # the draws do move the score
+    assert expected.std() < score.std()

@@ -1,9 +1,11 @@
 """Paired differences between two evaluations of the same methods on the same scenarios: for
 every (method, setting, level) in both, the mean of (score in A - score in B) over the scenario
 ids both hold, with 1.96 standard errors. For comparing two sets of weights run under the same
-method names (docs/training.md, "Setting (b)").
+method names (docs/training.md, "Setting (b)"). COLUMN (default score) names another
+results.csv column to compare, e.g. expected_score: the score in expectation over the
+classification outcomes, far less noisy for comparisons (docs/evaluation.md).
 
-Usage: python tools/compare_evals.py EVAL_DIR_A EVAL_DIR_B
+Usage: python tools/compare_evals.py EVAL_DIR_A EVAL_DIR_B [COLUMN]
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import numpy as np
 from ata.experiment.report import md_table, read_results
 
 
-def main(a_dir: str, b_dir: str) -> None:
+def main(a_dir: str, b_dir: str, column: str = "score") -> None:
     a, b = read_results(a_dir), read_results(b_dir)
     rows = []
     for method in a.methods:
@@ -26,7 +28,7 @@ def main(a_dir: str, b_dir: str) -> None:
                     c = res.columns
                     sel = (c["method"] == method) & (c["setting"] == setting) & \
                         (c["uncertainty"] == level)
-                    scores.append(dict(zip(c["scenario"][sel].tolist(), c["score"][sel])))
+                    scores.append(dict(zip(c["scenario"][sel].tolist(), np.asarray(c[column][sel], dtype=float))))
                 common = sorted(set(scores[0]) & set(scores[1]))
                 if not common:
                     continue
@@ -39,6 +41,6 @@ def main(a_dir: str, b_dir: str) -> None:
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 3:
+    if len(sys.argv) not in (3, 4):
         sys.exit(__doc__)
-    main(sys.argv[1], sys.argv[2])
+    main(*sys.argv[1:4])

@@ -155,6 +155,10 @@ class PoiTaskModel:
         sim.record.metrics["classified_share"] = classified.mean(axis=1)
         sim.record.metrics["correct_share"] = np.where(classified, t.gain > 0, False).sum(1) \
             / np.maximum(classified.sum(1), 1)
+        # the score in expectation over the classification outcomes (each classification's
+        # expected points given how it was made): the same episode, without the outcome draws'
+        # noise, so comparisons of methods need far fewer scenarios
+        sim.record.metrics["expected_score"] = sim.record.r_expected.sum(axis=1)
 
 
 def upper_bound(sim: SimState) -> np.ndarray:
