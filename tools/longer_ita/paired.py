@@ -2,7 +2,8 @@
 suite's first) on the same scenarios, per (setting, level): mean score and the mean difference
 +- 1.96 standard errors.
 
-Usage: python tools/longer_ita/paired.py EVAL_DIR [BASE_METHOD]
+Usage: python tools/longer_ita/paired.py EVAL_DIR [BASE_METHOD] [COLUMN]   (COLUMN: score by
+default, or e.g. expected_score)
 """
 
 from __future__ import annotations
@@ -14,14 +15,14 @@ import numpy as np
 from ata.experiment.report import read_results
 
 
-def main(eval_dir: str, base: str | None = None) -> None:
+def main(eval_dir: str, base: str | None = None, column: str = "score") -> None:
     r = read_results(eval_dir)
     c = r.columns
     base = base or r.methods[0]
 
     def scores(method, setting, level):
         sel = (c["method"] == method) & (c["setting"] == setting) & (c["uncertainty"] == level)
-        d = dict(zip(c["scenario"][sel].tolist(), c["score"][sel]))
+        d = dict(zip(c["scenario"][sel].tolist(), np.asarray(c[column][sel], dtype=float)))
         return np.array([d[i] for i in sorted(d)])
 
     for setting in r.settings:
@@ -37,4 +38,4 @@ def main(eval_dir: str, base: str | None = None) -> None:
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:3])
+    main(*sys.argv[1:4])
