@@ -94,7 +94,7 @@ def _context(session, ids):
     sim.reset()
     truth = Observation()
     sim.pm.hook.ata_observe(sim=sim.sim, obs=truth)
-    return sim._context(truth, truth, {})
+    return sim._context(truth, {})
 
 
 def test_allocations_meet_redundancy_and_capacity():

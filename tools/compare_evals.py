@@ -23,12 +23,9 @@ def main(a_dir: str, b_dir: str, column: str = "score") -> None:
     for method in a.methods:
         for setting in a.settings:
             for level in a.levels:
-                scores = []
-                for res in (a, b):
-                    c = res.columns
-                    sel = (c["method"] == method) & (c["setting"] == setting) & \
-                        (c["uncertainty"] == level)
-                    scores.append(dict(zip(c["scenario"][sel].tolist(), np.asarray(c[column][sel], dtype=float))))
+                scores = [dict(zip(res.columns["scenario"][sel].tolist(),
+                                   np.asarray(res.columns[column][sel], dtype=float)))
+                          for res in (a, b) for sel in [res.select(method, setting, level)]]
                 common = sorted(set(scores[0]) & set(scores[1]))
                 if not common:
                     continue

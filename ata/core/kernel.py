@@ -104,12 +104,17 @@ class Simulation:
         component = self.slot_component[slot]
         return getattr(component, "component_name", None) or type(component).__name__
 
-    def _context(self, observed: Observation, truth: Observation,
-                 recon: dict[str, np.ndarray]) -> DecisionContext:
+    def _reallocatable(self, obs: Observation) -> np.ndarray:
+        """(B, P) bool: the tasks `obs` says may change now (every task where no model
+        restricted it)."""
+        if obs.reallocatable is None:
+            return np.ones((self.sim.batch_size, self.sim.sizes.tasks), dtype=bool)
+        return obs.reallocatable
+
+    def _context(self, observed: Observation, recon: dict[str, np.ndarray]) -> DecisionContext:
         sim = self.sim
-        realloc = observed.reallocatable       # as observed: an injector may make it stale
-        if realloc is None:
-            realloc = np.ones((sim.batch_size, sim.sizes.tasks), dtype=bool)
+        # as observed: an injector may make it stale
+        realloc = self._reallocatable(observed)
         return DecisionContext(epoch=sim.epoch, time=sim.now, sizes=sim.sizes, clock=sim.clock,
                                inherent=self.inherent, observed=observed, reconstructed=recon,
                                previous=sim.allocation, reallocatable=realloc, rng=sim.rng,
@@ -162,7 +167,7 @@ class Simulation:
         hook.ata_inject(sim=sim, obs=observed)
         recon: dict[str, np.ndarray] = {}
         hook.ata_reconstruct(sim=sim, obs=observed, inherent=self.inherent, out=recon)
-        ctx = self._context(observed, truth, recon)
+        ctx = self._context(observed, recon)
         self.last_context = self._pending = ctx
         self.last_truth = truth
         return ctx
@@ -212,7 +217,8 @@ class Simulation:
                 proposed = self._check(allocation, "reallocation")
                 # what the policy saw as reallocatable and what truly is (a stale observation
                 # may show a captured POI as open: its triple stays, whatever was proposed)
-                allowed = active[:, None] & ctx.reallocatable & self._truly_reallocatable()
+                allowed = active[:, None] & ctx.reallocatable \
+                    & self._reallocatable(self.last_truth)
                 previous = sim.allocation
                 merged = proposed.where(allowed, previous)
                 changed = ((merged.robot != previous.robot) | (merged.navigator != previous.navigator)
@@ -231,14 +237,6 @@ class Simulation:
         hook.ata_epoch_end(sim=sim, epoch=k)
         sim.epoch = k + 1
         sim.now = sim.epoch * clock.epoch_s
-
-    def _truly_reallocatable(self) -> np.ndarray:
-        """(B, P) bool: the tasks whose triple may change now by the models' rule on the true
-        state (the ``reallocatable`` of the truth observed at the epoch's start)."""
-        truth = self.last_truth
-        if truth is None or truth.reallocatable is None:
-            return np.ones((self.sim.batch_size, self.sim.sizes.tasks), dtype=bool)
-        return truth.reallocatable
 
     def reset(self) -> Observation:
         """Sample the batch and collect the inherent information I."""

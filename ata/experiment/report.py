@@ -207,8 +207,10 @@ class Report:
                 if self.table(s, lv)]
 
 
-def _paired(res: Results, ref: np.ndarray, other: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The scores of reference and other on the scenarios both ran (same seed and id)."""
+def paired_values(res: Results, ref: np.ndarray, other: np.ndarray,
+                  column: str = "score") -> tuple[np.ndarray, np.ndarray]:
+    """A column (the score by default) of the rows `ref` and `other` select (masks, e.g. of
+    `Results.select`), on the scenarios both ran (same seed and id), in pairs."""
     c = res.columns
     key_r = {(int(s), int(i)): k for k, s, i in zip(np.nonzero(ref)[0], c["seed"][ref],
                                                    c["scenario"][ref])}
@@ -218,7 +220,7 @@ def _paired(res: Results, ref: np.ndarray, other: np.ndarray) -> tuple[np.ndarra
     if not pairs:
         return np.zeros(0), np.zeros(0)
     a, b = np.array(pairs).T
-    return c["score"][a], c["score"][b]
+    return c[column][a], c[column][b]
 
 
 def summarize(res: Results, reference: str | None = None, resamples: int = RESAMPLES,
@@ -242,7 +244,7 @@ def summarize(res: Results, reference: str | None = None, resamples: int = RESAM
                 mean, low, high = bootstrap_ci(c["score"][sel], resamples, seed=seed)
                 beats, diff = nan, (nan, nan, nan)
                 if method != reference and ref.any():
-                    a, b = _paired(res, ref, sel)
+                    a, b = paired_values(res, ref, sel)
                     beats = beat_probability(a, b)
                     diff = bootstrap_ci(a - b, resamples, seed=seed)
                 realloc = c.get("reallocations")
@@ -295,7 +297,7 @@ def paired_differences(res: Results, reference: str, resamples: int = RESAMPLES,
                 sel = res.select(method, setting, level)
                 if method == reference or not sel.any():
                     continue
-                a, b = _paired(res, ref, sel)
+                a, b = paired_values(res, ref, sel)
                 if a.size:
                     out.append(Paired(method, reference, setting, level, int(a.size),
                                       *bootstrap_ci(b - a, resamples, seed=seed)))

@@ -12,25 +12,18 @@ import sys
 
 import numpy as np
 
-from ata.experiment.report import read_results
+from ata.experiment.report import paired_values, read_results
 
 
 def main(eval_dir: str, base: str | None = None, column: str = "score") -> None:
     r = read_results(eval_dir)
-    c = r.columns
     base = base or r.methods[0]
-
-    def scores(method, setting, level):
-        sel = (c["method"] == method) & (c["setting"] == setting) & (c["uncertainty"] == level)
-        d = dict(zip(c["scenario"][sel].tolist(), np.asarray(c[column][sel], dtype=float)))
-        return np.array([d[i] for i in sorted(d)])
-
     for setting in r.settings:
         for level in r.levels:
-            b = scores(base, setting, level)
+            ref = r.select(base, setting, level)
             cells = []
             for m in r.methods:
-                v = scores(m, setting, level)
+                b, v = paired_values(r, ref, r.select(m, setting, level), column)
                 d = v - b
                 se = d.std(ddof=1) / np.sqrt(len(d)) if len(d) > 1 else 0.0
                 cells.append(f"{m} {v.mean():.1f} ({d.mean():+.1f} +- {1.96 * se:.1f})")

@@ -223,12 +223,6 @@ class ATAHRLTrainer:
     def save(self, name: str = "checkpoint.pt") -> None:
         self.run_folder.save(self.checkpoint(), name)
 
-    def tr_from_ita(self) -> None:
-        """pi_TR's encoder and decoder scorers as the ITA's, its state embedding and keep step
-        at zero: at the start of the CTR phase pi_TR decodes exactly as the trained ITA (a pure
-        function of the ITA's weights, so a resumed run does the same)."""
-        tr_from_ita(self.net)
-
     def _tr_at_step_0(self) -> None:
         """A run with no CTR step (``ctr_steps = 0``) still ends with pi_TR at the CTR phase's
         step 0, copied from its ITA, in checkpoint.pt and best.pt, as a run with CTR steps
@@ -236,7 +230,7 @@ class ATAHRLTrainer:
         if self.phases()["ctr"] != 0 or not (self.trains_tr or self.trains_cond) \
                 or not (self.s.tr_from_ita and self.trains_ita):
             return
-        self.tr_from_ita()
+        tr_from_ita(self.net)
         self.save()
         best = self.run_folder.best_path
         if best.exists():                  # the ITA phase's best step: the same copy in it
@@ -506,7 +500,7 @@ class ATAHRLTrainer:
             group["lr"] = s.lr if phase == "ita" else s.ctr_lr
         if phase == "ctr" and self.counters["ctr"] == 0 and s.tr_from_ita \
                 and self.trains_ita:
-            self.tr_from_ita()
+            tr_from_ita(self.net)
         if self.counters[phase] == 0 and phase not in self.validated_at_start:
             self._validate(phase, 0)          # the untrained part: greedy's prior alone
             self.validated_at_start.add(phase)
@@ -671,7 +665,9 @@ def _is(factory: Any, cls: type | tuple[type, ...]) -> bool:
 
 
 def tr_from_ita(net) -> None:
-    """pi_TR of `net` as its ITA (see ATAHRLTrainer.tr_from_ita)."""
+    """pi_TR's encoder and decoder scorers as the ITA's, its state embedding and keep step at
+    zero: at the start of the CTR phase pi_TR decodes exactly as the trained ITA (a pure
+    function of the ITA's weights, so a resumed run does the same)."""
     tr, ita = net.tr, net.ita
     with torch.no_grad():
         tr.encoder.load_state_dict(ita.encoder.state_dict())
