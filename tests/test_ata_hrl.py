@@ -397,3 +397,40 @@ def test_a_run_with_no_ctr_step_ends_with_pi_tr_copied_from_its_ita(tmp_path):
         assert pairs and all(torch.equal(model[k], model["ita." + k[3:]]) for k in pairs), name
         keep = [k for k in model if k.startswith("tr.keep.linear.")]
         assert keep and all(not model[k].any() for k in keep), name
+
+
+def test_the_full_replan_is_taken_only_where_the_model_expects_it_to_be_worth_more():
+    # replan_in_full: pi_TR's per-POI reallocation or a full re-plan decoded afresh, per
+    # scenario, whichever greedy's model of worth prefers (net of the re-tasking cost)
+    from ata.plugins.policies.greedy import RetaskCost
+    from ata.plugins.policies.plan import plan_start
+    s = session()
+    torch.manual_seed(0)
+    net = ATAHRLNet(NetConfig(d_model=16, hidden=16, recon_hidden=8))
+    seen = []
+
+    class Spy(CTRPolicy):
+        def _or_full_replan(self, sub, seen_state, emb, alloc):
+            out, take = super()._or_full_replan(sub, seen_state, emb, alloc)
+            at = plan_start(sub, self.greedy.s.capture_s)
+            worth = [self.greedy._worth(sub, at, a, sub.reallocatable, RetaskCost.of(sub))
+                     for a in (alloc, out)]
+            seen.append((worth, take, alloc, out, sub.reallocatable))
+            return out, take
+
+    def run(full):
+        over = components(s, net)
+        ctr = Spy(CTRPolicy.Settings(replan_in_full=True), s.mission, net=net) if full else \
+            CTRPolicy(CTRPolicy.Settings(replan_in_full=False), s.mission, net=net)
+        over["condition"] = over["reallocation"] = ctr
+        return Simulation(s.mission, s.registry, list(range(8)), overrides=over).run()
+
+    plain, full = run(False), run(True)
+    assert seen and any(take.any() for _, take, *_ in seen)
+    for (w_alloc, w_out), take, alloc, out, open_ in seen:
+        np.testing.assert_array_less(w_alloc[take], w_out[take])      # taken: worth more
+        same = (alloc.robot == out.robot) & (alloc.navigator == out.navigator) & \
+            (alloc.classifier == out.classifier)
+        assert same[~take].all()                                       # not taken: unchanged
+        assert same[~open_].all()                                      # closed POIs: unchanged
+    assert not np.array_equal(plain.allocations, full.allocations)

@@ -150,9 +150,22 @@ class CTRPolicy(LearnedComponent):
     the re-briefs and re-plans a change would cost among the decoder's features. In the options
     framework: pi_C's option starts at every epoch and ends after its decision; pi_TR's starts
     when pi_C says yes and ends once it has reallocated. With ``condition = "always"`` pi_TR
-    runs every epoch (the w/o.C ablation)."""
+    runs every epoch (the w/o.C ablation).
 
-    def __init__(self, settings: "LearnedComponent.Settings", mission: Any,
+    With ``replan_in_full`` pi_TR also decodes every reallocatable POI afresh (by the mode of
+    its scorers) and takes that full re-plan where the model, in expectation on the observed
+    state, gives it more points net of its re-tasking cost than its per-POI reallocation: the
+    comparison greedy's reallocation makes between keeping, repairing and re-planning in
+    full."""
+
+    @dataclass
+    class Settings(LearnedComponent.Settings):
+        replan_in_full: bool = param(True, help="also decode a full re-plan and take it where "
+                                     "the model expects it to be worth more, net of the "
+                                     "re-tasking cost (as greedy weighs its own); false: the "
+                                     "per-POI reallocation alone")
+
+    def __init__(self, settings: "CTRPolicy.Settings", mission: Any,
                  net: ATAHRLNet | None = None):
         super().__init__(settings, mission, net)
         self.hidden: torch.Tensor | None = None
@@ -255,9 +268,33 @@ class CTRPolicy(LearnedComponent):
                                             self.planned_attrs[rows])
         # the decoder's allocation holds the decoded POIs; the booked ones take their triples
         alloc = booked.where(first >= D.KEEP, alloc)
+        if self.settings.replan_in_full:
+            alloc, full = self._or_full_replan(sub, seen, emb, alloc)
+            replanned = replanned | (full[:, None] & sub.reallocatable)
+            self.planned_attrs[rows] = np.where(replanned[..., None], attrs,
+                                                self.planned_attrs[rows])
         out.robot[rows], out.navigator[rows], out.classifier[rows] = \
             alloc.robot, alloc.navigator, alloc.classifier
         return out
+
+
+    def _or_full_replan(self, sub: DecisionContext, seen: dict[str, np.ndarray],
+                        emb: dict[str, torch.Tensor], alloc: Allocation
+                        ) -> tuple[Allocation, np.ndarray]:
+        """`alloc` or a full re-plan decoded afresh, per scenario, whichever greedy's model of
+        worth (expected points less human time and re-tasking) prefers; keep wins ties. The
+        re-plan takes the mode and is not recorded: to pi_TR's training it is part of the
+        environment. Returns the allocation and which scenarios took the re-plan."""
+        start, fatigue, util = decoder_start(sub, seen)
+        dec = Decoder(start, sub.reallocatable, fatigue, util, decode_settings(sub),
+                      previous=sub.previous)
+        full = D.decode(dec, self.net.tr, emb, D.argmax_chooser, residual=self.settings.learned)
+        cost = RetaskCost.of(sub)
+        at = plan_start(sub, self.greedy.s.capture_s)
+        worth_alloc = self.greedy._worth(sub, at, alloc, sub.reallocatable, cost)
+        worth_full = self.greedy._worth(sub, at, full, sub.reallocatable, cost)
+        take = worth_full > worth_alloc + 1e-9
+        return full.where(take[:, None] & sub.reallocatable, alloc), take
 
 
 def _attrs(ctx: DecisionContext) -> np.ndarray:
