@@ -70,9 +70,10 @@ def main() -> None:
             pol = AttentionITA(settings, mission, net=trainer.net)
             reg = trainer.registry
             never = build_component(reg, mission, "condition", "never")
+            keep = build_component(reg, mission, "policy", "keep")
             identity = build_component(reg, mission, "reconstructor", "identity")
             Simulation(mission, reg, ids(i),
-                       overrides={"initial": pol, "condition": never, "reallocation": pol,
+                       overrides={"initial": pol, "condition": never, "reallocation": keep,
                                   "reconstructors": identity}).run()
         return run
 

@@ -122,7 +122,8 @@ class LearnedComponent:
 
 class AttentionITA(LearnedComponent):
     """The initial allocation, decoded step by step with the ITA network (attention encoder of
-    I, capacity-aware decoder); as a reallocation policy it keeps the allocation."""
+    I, capacity-aware decoder). It fills the initial slot alone; the reallocation is another
+    component's (``ctr``, ``keep``, ...)."""
 
     @hookimpl
     def ata_initial_allocation(self, ctx: DecisionContext) -> Allocation:
