@@ -413,7 +413,7 @@ def test_the_full_replan_is_taken_only_where_the_model_expects_it_to_be_worth_mo
         def _or_full_replan(self, sub, seen_state, emb, alloc):
             out, take = super()._or_full_replan(sub, seen_state, emb, alloc)
             at = plan_start(sub, self.greedy.s.capture_s)
-            worth = [self.greedy._worth(sub, at, a, sub.reallocatable, RetaskCost.of(sub))
+            worth = [self.greedy.worth(sub, at, a, sub.reallocatable, RetaskCost.of(sub))
                      for a in (alloc, out)]
             seen.append((worth, take, alloc, out, sub.reallocatable))
             return out, take

@@ -283,8 +283,8 @@ class Probe:
         open_ = ctx.reallocatable & active[:, None]
         start = plan_start(ctx)
         cost = RetaskCost.of(ctx)
-        keep = self.greedy._worth(ctx, start, ctx.previous, open_, cost)
-        chosen = self.greedy._worth(ctx, start, out, open_, cost)
+        keep = self.greedy.worth(ctx, start, ctx.previous, open_, cost)
+        chosen = self.greedy.worth(ctx, start, out, open_, cost)
         moved = (out.stack() != ctx.previous.stack()).any(axis=(1, 2))
         assert (chosen[moved] > keep[moved]).all()
         self.checked += int(active.sum())

@@ -265,25 +265,22 @@ class CTRPolicy(LearnedComponent):
         dec.replay(dec.left & (first >= D.KEEP), booked)
         alloc = D.decode(dec, self.net.tr, emb, choose, residual=self.settings.learned,
                          trace=trace)
-        self.planned_attrs[rows] = np.where(replanned[..., None], attrs,
-                                            self.planned_attrs[rows])
         # the decoder's allocation holds the decoded POIs; the booked ones take their triples
         alloc = booked.where(first >= D.KEEP, alloc)
         if self.settings.replan_in_full:
             alloc, full = self._or_full_replan(sub, seen, emb, alloc)
             replanned = replanned | (full[:, None] & sub.reallocatable)
-            self.planned_attrs[rows] = np.where(replanned[..., None], attrs,
-                                                self.planned_attrs[rows])
+        self.planned_attrs[rows] = np.where(replanned[..., None], attrs,
+                                            self.planned_attrs[rows])
         out.robot[rows], out.navigator[rows], out.classifier[rows] = \
             alloc.robot, alloc.navigator, alloc.classifier
         return out
-
 
     def _or_full_replan(self, sub: DecisionContext, seen: dict[str, np.ndarray],
                         emb: dict[str, torch.Tensor], alloc: Allocation
                         ) -> tuple[Allocation, np.ndarray]:
         """`alloc` or a full re-plan decoded afresh, per scenario, whichever greedy's model of
-        worth (expected points less human time and re-tasking) prefers; keep wins ties. The
+        worth (expected points less human time and re-tasking) prefers; `alloc` wins ties. The
         re-plan takes the mode and is not recorded: to pi_TR's training it is part of the
         environment. Returns the allocation and which scenarios took the re-plan."""
         start, fatigue, util = decoder_start(sub, seen)
@@ -292,8 +289,8 @@ class CTRPolicy(LearnedComponent):
         full = D.decode(dec, self.net.tr, emb, D.argmax_chooser, residual=self.settings.learned)
         cost = RetaskCost.of(sub)
         at = plan_start(sub, self.greedy.s.capture_s)
-        worth_alloc = self.greedy._worth(sub, at, alloc, sub.reallocatable, cost)
-        worth_full = self.greedy._worth(sub, at, full, sub.reallocatable, cost)
+        worth_alloc = self.greedy.worth(sub, at, alloc, sub.reallocatable, cost)
+        worth_full = self.greedy.worth(sub, at, full, sub.reallocatable, cost)
         take = worth_full > worth_alloc + 1e-9
         return full.where(take[:, None] & sub.reallocatable, alloc), take
 

@@ -92,7 +92,7 @@ class GreedyPolicy:
                                                         getattr(prev, field)[rows])
         candidates = (prev, repair) + ((plan(ctx, self.s, open_),) if self.s.replan_in_full
                                        else ())
-        worth = np.stack([self._worth(ctx, start, c, open_, cost) for c in candidates], axis=1)
+        worth = np.stack([self.worth(ctx, start, c, open_, cost) for c in candidates], axis=1)
         best = np.zeros(worth.shape[0], dtype=np.int64)
         # a change must gain more than it costs: keep wins ties
         for i in range(1, len(candidates)):
@@ -108,10 +108,11 @@ class GreedyPolicy:
         self.planned_attrs = np.where(replanned[..., None], attrs, self.planned_attrs)
         return out
 
-    def _worth(self, ctx: DecisionContext, start: PlanStart, cand: Allocation,
-               open_: np.ndarray, cost: "RetaskCost") -> np.ndarray:
-        """Projected points of the open POIs, less the price of the human time booked and of
-        the re-tasking the change from the allocation in force costs."""
+    def worth(self, ctx: DecisionContext, start: PlanStart, cand: Allocation,
+              open_: np.ndarray, cost: "RetaskCost") -> np.ndarray:
+        """(B,) projected points of the `open_` POIs under `cand`, less the price of the human
+        time booked and of the re-tasking the change from the allocation in force costs: how
+        greedy weighs its candidates, public for other policies that weigh theirs alike."""
         prev = ctx.previous
         changed = open_ & ((cand.robot != prev.robot) | (cand.navigator != prev.navigator)
                            | (cand.classifier != prev.classifier))
