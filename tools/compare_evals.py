@@ -1,6 +1,6 @@
 """Paired differences between two evaluations of the same methods on the same scenarios: for
 every (method, setting, level) in both, the mean of (score in A - score in B) over the scenario
-ids both hold, with 1.96 standard errors. For comparing two sets of weights run under the same
+ids both hold, with 1.96 standard errors, and how many of those scenarios differ at all. For comparing two sets of weights run under the same
 method names (docs/training.md, "Setting (b)"). COLUMN (default score) names another
 results.csv column to compare, e.g. expected_score: the score in expectation over the
 classification outcomes, far less noisy for comparisons (docs/evaluation.md).
@@ -31,10 +31,10 @@ def main(a_dir: str, b_dir: str, column: str = "score") -> None:
                     continue
                 d = np.array([scores[0][i] - scores[1][i] for i in common])
                 half = 1.96 * d.std(ddof=1) / np.sqrt(d.size) if d.size > 1 else float("nan")
-                rows.append([method, setting, level, str(d.size),
+                rows.append([method, setting, level, str(d.size), str(int((d != 0).sum())),
                              f"{d.mean():+.1f} ± {half:.1f}"])
-    print("\n".join(md_table(["method", "setting", "level", "scenarios", "A - B (± 1.96 SE)"],
-                             rows)))
+    print("\n".join(md_table(["method", "setting", "level", "scenarios", "differing",
+                              "A - B (± 1.96 SE)"], rows)))
 
 
 if __name__ == "__main__":
