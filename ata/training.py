@@ -29,6 +29,7 @@ its last checkpoint with ``ata train --resume DIR``.
 from __future__ import annotations
 
 import csv
+import hashlib
 import os
 from pathlib import Path
 from typing import Any, Callable
@@ -114,6 +115,24 @@ def trained_on(spec: str, kind: str) -> list[tuple[int, int, int]]:
         data = read_checkpoint(path, kind)
         _CACHE[key] = [tuple(int(x) for x in r) for r in data.get("scenario_ranges", [])]
     return list(_CACHE[key])
+
+
+def file_digest(spec: str) -> str | None:
+    """The sha256 (first 16 hex digits) of the file a setting names (``builtin:NAME`` or a
+    path), or None where it names no file; computed once per process for each version of the
+    file. Plan keys include it, so a folder of results is not resumed with other weights."""
+    path = resolve(spec)
+    if not path.is_file():
+        return None
+    stat = path.stat()
+    key = ("digest", str(path.resolve()), stat.st_mtime_ns, stat.st_size)
+    if key not in _CACHE:
+        h = hashlib.sha256()
+        with open(path, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                h.update(block)
+        _CACHE[key] = h.hexdigest()[:16]
+    return _CACHE[key]
 
 
 class TrainRun:

@@ -181,8 +181,42 @@ def test_a_killed_run_resumes_with_the_results_of_an_uninterrupted_run(tmp_path)
 
 def test_workers_are_honoured_even_for_one_batch():
     from ata.experiment.runner import BASELINE_MISSION, load_session
-    from ata.experiment.units import chunks_of
+    import numpy as np
     mission = load_session(str(BASELINE_MISSION), ["mission.scenarios=10"]).mission
     assert [c.size for c in chunks_of(mission, 1)] == [10]          # batch_size 500
     assert [c.size for c in chunks_of(mission, 2)] == [5, 5]
     assert [c.size for c in chunks_of(mission, 3)] == [4, 4, 2]
+
+
+def test_plan_keys_change_with_the_content_of_the_weights_a_mission_names(tmp_path):
+    """A folder of results made with one checkpoint is not resumed with another that has the
+    same name: the plan keys of `ata run` and `ata eval` hold each named file's digest."""
+    import shutil
+
+    from ata.experiment import evaluate as ev
+    from ata.experiment.runner import load_session, plan_key
+    import numpy as np
+
+    weights = tmp_path / "w.pt"
+    shutil.copy(Path(__file__).resolve().parent.parent / "ata" / "weights" / "ata_hrl_a.pt",
+                weights)
+    mission = Path(__file__).resolve().parent.parent / "examples" / "missions" / "ata_hrl_a.toml"
+    suite = tmp_path / "suite.toml"
+    suite.write_text(f'[suite]\nname = "w"\nsettings = ["a"]\nuncertainty = ["low"]\n'
+                     f'scenarios = 4\nseed = 0\n\n[[method]]\nname = "m"\nmission = "{mission}"\n'
+                     f'set = ["ctr.checkpoint=\'{weights}\'"]\n')
+    sets = [f"ctr.checkpoint='{weights}'"]
+
+    def keys():
+        session = load_session(str(mission), sets)
+        _, jobs = ev.plan([str(suite)], validate=False)
+        return plan_key(session, [np.arange(4)]), ev.plan_key(jobs, 2)
+
+    first = keys()
+    assert keys() == first                                   # stable while the file is
+    # the digest is of the content, not the name: the copy's is the shipped file's
+    assert load_session(str(mission), sets).inputs()["ctr.checkpoint"] == \
+        load_session(str(mission)).inputs()["ctr.checkpoint"]
+    weights.write_bytes(weights.read_bytes() + b"\0")        # same name, other content
+    second = keys()
+    assert second[0] != first[0] and second[1] != first[1]

@@ -366,7 +366,8 @@ def plan_key(jobs: list[Job], chunk_size: int) -> str:
     component versions, the chunking); not where or how fast it runs."""
     return runlog.plan_key({"ata": __version__, "chunk_size": chunk_size,
                             "jobs": [[j.method, j.setting, j.level, j.mission.to_toml(),
-                                      j.session.versions()] for j in jobs]})
+                                      j.session.versions(), j.session.inputs()]
+                                     for j in jobs]})
 
 
 def unit_count(jobs: list[Job], chunk_size: int) -> int:
@@ -440,13 +441,16 @@ def write_eval(out_dir: str | Path, suites: list[Suite], jobs: list[Job], result
         (out / "missions" / name).write_text(job.mission.to_toml(), encoding="utf-8")
     components: dict[str, str] = {}
     per_method: dict[str, dict[str, str]] = {}
+    inputs: dict[str, dict[str, str]] = {}
     for job in jobs:
         versions = job.session.versions()
         components.update(versions)
         per_method.setdefault(job.method, {}).update(versions)
+        inputs.setdefault(job.method, {}).update(job.session.inputs())
     (out / "plugins.toml").write_text(tomli_w.dumps({"ata": __version__,
                                                      "components": components,
-                                                     "methods": per_method}), encoding="utf-8")
+                                                     "methods": per_method,
+                                                     "inputs": inputs}), encoding="utf-8")
     meta = {"ata": __version__, "arguments": arguments,
             "suites": [{"path": s.path, "name": s.name, "content": s.raw} for s in suites],
             "jobs": [{"method": j.method, "setting": j.setting, "uncertainty": j.level,

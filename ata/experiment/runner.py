@@ -4,6 +4,7 @@ results, summary statistics, and the run folder that makes every number reproduc
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import math
 import os
@@ -15,7 +16,7 @@ from typing import Any, Callable
 import numpy as np
 import tomli_w
 
-from ata import __version__
+from ata import __version__, training
 from ata.core import mission as mission_mod
 from ata.core.errors import MissionError
 from ata.core.kernel import Simulation
@@ -46,6 +47,22 @@ class Session:
         """'kind name' -> 'distribution version' of every chosen component."""
         return {f"{kind} {name}": self.registry.get(kind, name, "").dist
                 for kind, name in self.mission.chosen()}
+
+    def inputs(self) -> dict[str, str]:
+        """'component.setting' -> content digest of every file a component setting names (a
+        checkpoint, ``builtin:NAME`` or a path): the plan keys hold them, so results made with
+        one set of weights are never resumed with another under the same name."""
+        out = {}
+        for comp, settings in self.mission.component_settings.items():
+            if settings is None or not dataclasses.is_dataclass(settings):
+                continue
+            for f in dataclasses.fields(settings):
+                value = getattr(settings, f.name)
+                if isinstance(value, str) and value:
+                    digest = training.file_digest(value)
+                    if digest is not None:
+                        out[f"{comp}.{f.name}"] = digest
+        return out
 
 
 def load_session(path: str | None = None, overrides: list[str] | None = None,
@@ -151,7 +168,7 @@ def build_once(mission: Mission, registry: Register) -> Simulation:
 def plan_key(session: Session, chunks: list[np.ndarray]) -> str:
     """What decides a run's rows: the resolved mission, the components' versions, the chunks."""
     return runlog.plan_key({"ata": __version__, "mission": session.mission.to_toml(),
-                            "versions": session.versions(),
+                            "versions": session.versions(), "inputs": session.inputs(),
                             "chunks": [[int(c[0]), int(c.size)] for c in chunks]})
 
 
@@ -217,7 +234,8 @@ def write_run(out_dir: str | Path, session: Session, result: RunResult) -> Path:
     runlog.write_csv(out / "results.csv", list(rows[0]), rows)
     (out / "summary.json").write_text(json.dumps(summarize(result), indent=2) + "\n")
     (out / "mission.resolved.toml").write_text(session.mission.to_toml(), encoding="utf-8")
-    versions = {"ata": __version__, "components": session.versions()}
+    versions = {"ata": __version__, "components": session.versions(),
+                "inputs": session.inputs()}
     (out / "plugins.toml").write_text(tomli_w.dumps(versions), encoding="utf-8")
     return out
 
