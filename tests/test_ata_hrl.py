@@ -434,3 +434,31 @@ def test_the_full_replan_is_taken_only_where_the_model_expects_it_to_be_worth_mo
         assert same[~take].all()                                       # not taken: unchanged
         assert same[~open_].all()                                      # closed POIs: unchanged
     assert not np.array_equal(plain.allocations, full.allocations)
+
+
+def test_aux_reconstructs_only_the_parts_it_is_given():
+    from ata.plugins.ata_hrl.features import seen_state, state_features
+    s = load_session(str(BASELINE_MISSION), ["mission.uncertainty='high'"])
+    net = ATAHRLNet(NetConfig(d_model=16, hidden=16, recon_hidden=8))
+    seen = {}
+    for parts in (["fatigue", "robots", "tasks"], ["fatigue"], ["robots"]):
+        aux = AuxReconstructor(AuxReconstructor.Settings(parts=parts), s.mission, net=net)
+        sim = Simulation(s.mission, s.registry, [0, 1], overrides={"reconstructors": aux})
+        sim.reset()
+        for _ in range(3):
+            ctx = sim.begin_epoch()
+            sim.end_epoch(*sim.decide(ctx))
+        assert sorted(ctx.reconstructed) == sorted(f"aux_{p}" for p in parts)
+        seen[parts[0] if len(parts) == 1 else "all"] = (seen_state(ctx),
+                                                       state_features(ctx.observed))
+    got, raw = seen["fatigue"]
+    np.testing.assert_array_equal(got["robots"], raw["robots"])      # as observed
+    np.testing.assert_array_equal(got["tasks"], raw["tasks"])
+    assert not np.array_equal(got["humans"], raw["humans"])          # fatigue reconstructed
+    got, raw = seen["robots"]
+    np.testing.assert_array_equal(got["humans"], raw["humans"])
+    assert not np.array_equal(got["robots"], raw["robots"])
+    # the same scenarios and policy: what the full reconstruction gives the robots
+    np.testing.assert_allclose(got["robots"], seen["all"][0]["robots"])
+    with pytest.raises(MissionError, match="parts"):
+        load_session(str(training_mission_for(["ctr", "aux"])), [*TINY, "aux.parts=['speed']"])

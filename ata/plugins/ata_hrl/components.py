@@ -349,6 +349,9 @@ class AuxReconstructor:
     class Settings:
         checkpoint: str = param("builtin:ata_hrl_a", help="trained weights: a path or "
                                 "builtin:NAME")
+        parts: list[str] = param(["fatigue", "robots", "tasks"],
+                                 choices=("fatigue", "robots", "tasks"),
+                                 help="what it reconstructs; the rest stays as observed")
 
     def __init__(self, settings: "AuxReconstructor.Settings", mission: Any,
                  net: ATAHRLNet | None = None):
@@ -369,9 +372,12 @@ class AuxReconstructor:
             f_obs = torch.as_tensor(obs["humans"].col("fatigue"), dtype=torch.float32)
             hours = torch.as_tensor(obs["humans"].col("working_time"), dtype=torch.float32)
             cog = torch.as_tensor(inherent["humans"].col("cognitive"), dtype=torch.float32)
-            recon, _, _ = self.net.fatigue(f_obs, hours, cog)
-            out["aux_fatigue"] = recon.numpy().astype(np.float64)
+            if "fatigue" in self.settings.parts:
+                recon, _, _ = self.net.fatigue(f_obs, hours, cog)
+                out["aux_fatigue"] = recon.numpy().astype(np.float64)
             for group in ("robots", "tasks"):
+                if group not in self.settings.parts:
+                    continue
                 x = torch.as_tensor(feats[group], dtype=torch.float32)
                 B, N, F = x.shape
                 est, self.hidden[group] = self.net.latency[group](x.reshape(B * N, 1, F),
