@@ -355,7 +355,7 @@ class AuxReconstructor:
 
     def __init__(self, settings: "AuxReconstructor.Settings", mission: Any,
                  net: ATAHRLNet | None = None):
-        self.settings = settings
+        self.settings = settings if settings is not None else self.Settings()
         self.from_checkpoint = net is None       # a trainer's live network reports nothing
         self.net = net if net is not None else load_net(settings.checkpoint)
         self.hidden: dict[str, torch.Tensor | None] = {"robots": None, "tasks": None}
