@@ -181,7 +181,7 @@ def test_a_killed_run_resumes_with_the_results_of_an_uninterrupted_run(tmp_path)
 
 def test_workers_are_honoured_even_for_one_batch():
     from ata.experiment.runner import BASELINE_MISSION, load_session
-    import numpy as np
+    from ata.experiment.units import chunks_of
     mission = load_session(str(BASELINE_MISSION), ["mission.scenarios=10"]).mission
     assert [c.size for c in chunks_of(mission, 1)] == [10]          # batch_size 500
     assert [c.size for c in chunks_of(mission, 2)] == [5, 5]
