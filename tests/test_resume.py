@@ -133,7 +133,10 @@ def test_a_folder_of_another_plan_is_refused_unless_forced(suite, tmp_path, unin
 
 
 @pytest.mark.skipif(os.name != "posix", reason="signals")
-def test_ctrl_c_stops_at_once_saying_what_was_saved(suite, tmp_path):
+def test_ctrl_c_stops_at_once_saying_what_was_saved(tmp_path):
+    # 96 work units, so that a loaded machine cannot finish them all before the signal
+    suite = tmp_path / "suite.toml"
+    suite.write_text(SUITE.format(scenarios=96, random=RANDOM))
     out = tmp_path / "interrupted"
     proc = ata_eval(suite, out, "--workers", "2")
     deadline = time.time() + 120
@@ -146,7 +149,7 @@ def test_ctrl_c_stops_at_once_saying_what_was_saved(suite, tmp_path):
     assert time.time() - t0 < 10
     saved = lines(out / "units.jsonl")
     assert " ".join(proc.stderr.read().split()) == (
-        f"interrupted: {saved} of 24 work units are saved in {out}; run the same command with "
+        f"interrupted: {saved} of 96 work units are saved in {out}; run the same command with "
         f"--out {out} to go on")
 
 
