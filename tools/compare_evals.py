@@ -1,7 +1,8 @@
 """Paired differences between two evaluations of the same methods on the same scenarios: for
 every (method, setting, level) in both, the mean of (score in A - score in B) over the scenario
-ids both hold, with 1.96 standard errors, and how many of those scenarios differ at all. For comparing two sets of weights run under the same
-method names (docs/training.md, "Setting (b)"). COLUMN (default score) names another
+ids both hold, with 1.96 standard errors, and how many of those scenarios differ at all. For
+comparing two sets of weights run under the same method names (docs/training.md, "Setting
+(b)"). COLUMN (default score) names another
 results.csv column to compare, e.g. expected_score: the score in expectation over the
 classification outcomes, far less noisy for comparisons (docs/evaluation.md).
 

@@ -17,6 +17,8 @@ import json
 import sys
 from pathlib import Path
 
+from ata.experiment import runlog
+
 
 def read(folder: Path) -> tuple[list[dict], list[str]]:
     with open(folder / "results.csv", newline="", encoding="utf-8") as f:
@@ -50,10 +52,7 @@ def main(base: str, new: str, out: str) -> None:
             done.add(c)
     o = Path(out)
     o.mkdir(parents=True, exist_ok=True)
-    with open(o / "results.csv", "w", newline="", encoding="utf-8") as f:
-        w = csv.DictWriter(f, fieldnames=header, restval="")
-        w.writeheader()
-        w.writerows(rows)
+    runlog.write_csv(o / "results.csv", header, rows)     # a column a row lacks: blank
     (o / "eval.json").write_text(json.dumps(
         {"rows": len(rows), "base": str(base), "replaced_from": str(new),
          "replaced_cells": [list(c) for c in replaced]}, indent=2) + "\n", encoding="utf-8")

@@ -268,7 +268,10 @@ class CTRPolicy(LearnedComponent):
         # the decoder's allocation holds the decoded POIs; the booked ones take their triples
         alloc = booked.where(first >= D.KEEP, alloc)
         if self.settings.replan_in_full:
-            alloc, full = self._or_full_replan(sub, seen, emb, alloc)
+            # the decoder copies what it changes, so the re-plan starts from the same start
+            again = Decoder(start, sub.reallocatable, fatigue, util, settings,
+                            previous=sub.previous)
+            alloc, full = self._or_full_replan(sub, again, emb, alloc)
             replanned = replanned | (full[:, None] & sub.reallocatable)
         self.planned_attrs[rows] = np.where(replanned[..., None], attrs,
                                             self.planned_attrs[rows])
@@ -276,16 +279,14 @@ class CTRPolicy(LearnedComponent):
             alloc.robot, alloc.navigator, alloc.classifier
         return out
 
-    def _or_full_replan(self, sub: DecisionContext, seen: dict[str, np.ndarray],
+    def _or_full_replan(self, sub: DecisionContext, dec: Decoder,
                         emb: dict[str, torch.Tensor], alloc: Allocation
                         ) -> tuple[Allocation, np.ndarray]:
-        """`alloc` or a full re-plan decoded afresh, per scenario, whichever greedy's model of
-        worth (expected points less human time and re-tasking) prefers; `alloc` wins ties. The
-        re-plan takes the mode and is not recorded: to pi_TR's training it is part of the
-        environment. Returns the allocation and which scenarios took the re-plan."""
-        start, fatigue, util = decoder_start(sub, seen)
-        dec = Decoder(start, sub.reallocatable, fatigue, util, decode_settings(sub),
-                      previous=sub.previous)
+        """`alloc` or a full re-plan decoded afresh by `dec` (a fresh decoder of every
+        reallocatable POI), per scenario, whichever greedy's model of worth (expected points
+        less human time and re-tasking) prefers; `alloc` wins ties. The re-plan takes the mode
+        and is not recorded: to pi_TR's training it is part of the environment. Returns the
+        allocation and which scenarios took the re-plan."""
         full = D.decode(dec, self.net.tr, emb, D.argmax_chooser, residual=self.settings.learned)
         cost = RetaskCost.of(sub)
         at = plan_start(sub, self.greedy.s.capture_s)
@@ -357,7 +358,7 @@ class AuxReconstructor:
                  net: ATAHRLNet | None = None):
         self.settings = settings if settings is not None else self.Settings()
         self.from_checkpoint = net is None       # a trainer's live network reports nothing
-        self.net = net if net is not None else load_net(settings.checkpoint)
+        self.net = net if net is not None else load_net(self.settings.checkpoint)
         self.hidden: dict[str, torch.Tensor | None] = {"robots": None, "tasks": None}
 
     @hookimpl
