@@ -1,5 +1,5 @@
 """tools/replace_cells.py: an evaluation with some cells taken from a rerun, read by `ata report`
-as any evaluation."""
+as any evaluation; tools/power.py: the scenarios a paired drawn-score CI needs."""
 
 from __future__ import annotations
 
@@ -60,3 +60,36 @@ def test_replace_cells_refuses_a_cell_of_another_size_or_not_in_the_base(tmp_pat
     proc = run(base, other, tmp_path / "out2")
     assert proc.returncode != 0 and "not in" in proc.stderr
     assert not (tmp_path / "out").exists() and not (tmp_path / "out2").exists()
+
+
+def load_tool(name: str):
+    import importlib.util
+    spec = importlib.util.spec_from_file_location(name, TOOL.parent / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_power_gives_the_scenarios_a_drawn_ci_needs_at_the_expected_difference(tmp_path):
+    """tools/power.py: paired drawn and expected differences, and n = (1.96 sd / mean)^2."""
+    path = tmp_path / "ev"
+    path.mkdir()
+    drawn_b = [30.0, -10.0, 20.0, 0.0]      # B - A in drawn points, per scenario
+    exp_b = [2.0, 4.0, 1.0, 5.0]            # and in expected points
+    with open(path / "results.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(HEADER + ["expected_score"])
+        for lv, sign in (("low", 1.0), ("high", -1.0)):
+            for i in range(4):
+                w.writerow(["A", "a", lv, i, 0, 100.0, 1000.0, 0.1, 0.5, 1, 0.1, 90.0])
+                w.writerow(["B", "a", lv, i, 0, 100.0 + drawn_b[i], 1000.0, 0.1, 0.5, 1, 0.1,
+                            90.0 + sign * exp_b[i]])
+    (path / "eval.json").write_text(json.dumps({"rows": 16}))
+    got = {c["level"]: c for c in load_tool("power").rows(str(path), "B", "A")}
+    import numpy as np
+    sd = np.std(drawn_b, ddof=1)
+    low = got["low"]
+    assert low["n"] == 4 and low["drawn"] == np.mean(drawn_b) and low["expected"] == 3.0
+    assert abs(low["needed"] - (1.96 * sd / 3.0) ** 2) < 1e-9
+    assert abs(low["drawn_ci"] - 1.96 * sd / 2.0) < 1e-9
+    assert got["high"]["expected"] == -3.0 and got["high"]["needed"] == float("inf")
