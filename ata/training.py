@@ -29,21 +29,22 @@ its last checkpoint with ``ata train --resume DIR``.
 from __future__ import annotations
 
 import csv
-import hashlib
 import os
 from pathlib import Path
 from typing import Any, Callable
 
 from ata.core.errors import MissionError
 from ata.experiment.heldout import EVAL_FIRST_SCENARIO
+from ata.experiment.inputs import WEIGHTS, file_digest, resolve
+
+__all__ = ["TRAINING_ID_LIMIT", "VALIDATION_SEED_OFFSET", "WEIGHTS", "CheckpointError", "TrainRun",
+           "file_digest", "load_cached", "read_checkpoint", "resolve", "trained_on"]
 
 TRAINING_ID_LIMIT = EVAL_FIRST_SCENARIO
 """Training scenario ids lie below this; evaluation ids start there."""
 VALIDATION_SEED_OFFSET = 1_000_003
 """A trainer's held-out validation scenarios have root seed ``seed + VALIDATION_SEED_OFFSET``
 (the built-in trainers' convention; they list that range in ``scenario_ranges``)."""
-WEIGHTS = Path(__file__).resolve().parent / "weights"
-"""Where ``builtin:NAME`` checkpoints live (shipped with the package)."""
 _CACHE: dict[tuple, Any] = {}
 
 
@@ -52,13 +53,6 @@ class CheckpointError(MissionError):
 
     def __init__(self, path: str | Path, message: str):
         super().__init__("checkpoint", None, message, file=str(path))
-
-
-def resolve(spec: str) -> Path:
-    """A checkpoint's path: ``builtin:NAME`` is ata/weights/NAME.pt, anything else a path."""
-    if spec.startswith("builtin:"):
-        return WEIGHTS / f"{spec.split(':', 1)[1]}.pt"
-    return Path(spec)
 
 
 def read_checkpoint(path: str | Path, kind: str | None = None) -> dict[str, Any]:
@@ -115,24 +109,6 @@ def trained_on(spec: str, kind: str) -> list[tuple[int, int, int]]:
         data = read_checkpoint(path, kind)
         _CACHE[key] = [tuple(int(x) for x in r) for r in data.get("scenario_ranges", [])]
     return list(_CACHE[key])
-
-
-def file_digest(spec: str) -> str | None:
-    """The sha256 (first 16 hex digits) of the file a setting names (``builtin:NAME`` or a
-    path), or None where it names no file; computed once per process for each version of the
-    file. Plan keys include it, so a folder of results is not resumed with other weights."""
-    path = resolve(spec)
-    if not path.is_file():
-        return None
-    stat = path.stat()
-    key = ("digest", str(path.resolve()), stat.st_mtime_ns, stat.st_size)
-    if key not in _CACHE:
-        h = hashlib.sha256()
-        with open(path, "rb") as f:
-            for block in iter(lambda: f.read(1 << 20), b""):
-                h.update(block)
-        _CACHE[key] = h.hexdigest()[:16]
-    return _CACHE[key]
 
 
 class TrainRun:

@@ -16,7 +16,7 @@ from typing import Any, Callable
 import numpy as np
 import tomli_w
 
-from ata import __version__, training
+from ata import __version__
 from ata.core import mission as mission_mod
 from ata.core.errors import MissionError
 from ata.core.kernel import Simulation
@@ -25,6 +25,7 @@ from ata.core.registry import Register, collect_components, get_plugin_manager
 from ata.experiment import runlog
 from ata.experiment.executors import Executor, ProcessExecutor, SerialExecutor
 from ata.experiment.heldout import EVAL_FIRST_SCENARIO
+from ata.experiment.inputs import file_digest
 from ata.experiment.units import chunks_of, make_units, run_units
 
 BUILTIN_MISSION = Path(__file__).resolve().parent.parent / "missions" / "default.toml"
@@ -59,7 +60,7 @@ class Session:
             for f in dataclasses.fields(settings):
                 value = getattr(settings, f.name)
                 if isinstance(value, str) and value:
-                    digest = training.file_digest(value)
+                    digest = file_digest(value)
                     if digest is not None:
                         out[f"{comp}.{f.name}"] = digest
         return out
