@@ -357,6 +357,30 @@ def test_reconstructors_beat_the_noisy_and_stale_observations(tmp_path):
     assert after["fatigue_mse"] < before["fatigue_mse"]
 
 
+def test_aux_loss_chooses_the_grus_loss_and_the_log_keeps_their_squared_error():
+    from ata.plugins.ata_hrl.network import S_DIMS
+    gen = torch.Generator().manual_seed(0)
+    data = {"fatigue_in": torch.rand(20, 3, generator=gen),
+            "fatigue_target": torch.rand(20, generator=gen)}
+    for g in ("robots", "tasks"):
+        data[f"{g}_in"] = torch.rand(6, 4, S_DIMS[g], generator=gen)
+        data[f"{g}_target"] = torch.rand(6, 4, S_DIMS[g], generator=gen)
+    got = {}
+    for loss in ("mse", "l1"):
+        trainer = build_trainer(session(f"ata_hrl.aux_loss='{loss}'", "ata_hrl.seed=3"))
+        with torch.no_grad():
+            _, _, lat, lat_mse = trainer.aux_losses(data, sample=False)
+            err = {g: trainer.net.latency[g](data[f"{g}_in"])[0] - data[f"{g}_target"]
+                   for g in ("robots", "tasks")}
+        want = sum((e.abs() if loss == "l1" else e * e).mean() for e in err.values())
+        assert torch.allclose(lat, want)
+        assert torch.allclose(lat_mse, sum((e * e).mean() for e in err.values()))
+        got[loss] = lat_mse
+    assert torch.equal(got["mse"], got["l1"])        # the same networks: the seed made them
+    with pytest.raises(MissionError):
+        build_trainer(session("ata_hrl.aux_loss='huber'"))
+
+
 def test_the_trainer_cycles_through_uncertainty_levels_and_validates_on_each(tmp_path,
                                                                                monkeypatch):
     from ata.core.mission import UNCERTAINTY_LEVELS

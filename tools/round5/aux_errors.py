@@ -7,7 +7,8 @@ errors: observed, reconstructed, and reconstructed only where the observed row e
 observed an epoch before (a stale row is such a copy, so a row that changed is known fresh) and
 observed elsewhere ("gated"); and the share of rows that are copies.
 
-Usage: python tools/round5/aux_errors.py SETTING LEVEL [N]   (e.g. b high 24)
+Usage: python tools/round5/aux_errors.py SETTING LEVEL [N] [CHECKPOINT]   (e.g. b high 24; the
+checkpoint, a path or builtin:NAME, replaces the mission's weights for all three components)
 """
 
 from __future__ import annotations
@@ -26,9 +27,12 @@ ROBOT_COLS = ("x", "y", "idleness", "working", "target")
 TASK_COLS = ("unvisited", "captured", "classified", "kind", "d0", "d1", "d2")
 
 
-def main(setting: str, level: str, n: int = 24) -> None:
+def main(setting: str, level: str, n: int = 24, checkpoint: str | None = None) -> None:
     mission = ROOT / "examples" / "missions" / f"ata_hrl_{setting}.toml"
-    s = load_session(str(mission), [f"mission.uncertainty='{level}'", "mission.seed=99000017"])
+    weights = [f"{c}.checkpoint='{checkpoint}'" for c in ("attention", "ctr", "aux")
+               if checkpoint]
+    s = load_session(str(mission), [f"mission.uncertainty='{level}'", "mission.seed=99000017",
+                                     *weights])
     sim = Simulation(s.mission, s.registry, list(range(n)))
     sim.reset()
     err = {k: [] for k in ("fatigue obs", "fatigue aux")}
@@ -64,4 +68,4 @@ def main(setting: str, level: str, n: int = 24) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], sys.argv[2], *(int(a) for a in sys.argv[3:4]))
+    main(sys.argv[1], sys.argv[2], *(int(a) for a in sys.argv[3:4]), *sys.argv[4:5])

@@ -105,6 +105,10 @@ class ATAHRLTrainer:
         aux_steps: int = param(400, min=0, help="supervised steps of the reconstructors")
         aux_lr: float = param(3e-3, min=0.0, max=1.0, help="Adam learning rate of the "
                               "reconstructors")
+        aux_loss: str = param("mse", choices=("mse", "l1"), help="the stacked GRUs' loss: "
+                              "squared error (the mean of what a row may be) or absolute "
+                              "error (its median: a row more often fresh than stale is left "
+                              "as observed)")
         eval_every: int = param(25, min=1, help="held-out validation every N steps")
         eval_scenarios: int = param(64, min=1, help="validation scenarios per team setting "
                                     "(and per uncertainty level, with uncertainty_levels)")
@@ -432,22 +436,25 @@ class ATAHRLTrainer:
         return {k: torch.as_tensor(v, dtype=torch.float32) for k, v in out.items()}
 
     def aux_losses(self, data: dict[str, torch.Tensor], idx: dict | None = None,
-                   sample: bool = True) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """(cVAE loss, fatigue MSE, latency MSE) on the data (or the rows in idx)."""
+                   sample: bool = True) -> tuple[torch.Tensor, ...]:
+        """(cVAE loss, fatigue MSE, latency loss (`aux_loss` of the robot and task rows), latency
+        MSE) on the data (or the rows in idx)."""
         fi, ft = data["fatigue_in"], data["fatigue_target"]
         if idx is not None:
             fi, ft = fi[idx["fatigue"]], ft[idx["fatigue"]]
         recon, mu, logvar = self.net.fatigue(fi[:, 0], fi[:, 1], fi[:, 2], sample=sample)
         cvae = FatigueCVAE.loss(recon, ft, mu, logvar)
         f_mse = ((recon - ft) ** 2).mean()
-        lat = torch.zeros(())
+        lat, lat_mse = torch.zeros(()), torch.zeros(())
         for g in ("robots", "tasks"):
             x, y = data[f"{g}_in"], data[f"{g}_target"]
             if idx is not None:
                 x, y = x[idx[g]], y[idx[g]]
             est, _ = self.net.latency[g](x)
-            lat = lat + ((est - y) ** 2).mean()
-        return cvae, f_mse, lat
+            err = est - y
+            lat_mse = lat_mse + (err * err).mean()
+            lat = lat + (err.abs().mean() if self.s.aux_loss == "l1" else (err * err).mean())
+        return cvae, f_mse, lat, lat_mse
 
     def train_aux(self) -> dict[str, float]:
         steps = self.phases()["aux"]
@@ -460,7 +467,7 @@ class ATAHRLTrainer:
             t0 = time.perf_counter()
             idx = {k: torch.randint(0, v, (min(v, 1024),), generator=self.gen)
                    for k, v in n.items()}
-            cvae, f_mse, lat = self.aux_losses(data, idx)
+            cvae, f_mse, lat, lat_mse = self.aux_losses(data, idx)
             loss = cvae + lat
             self.aux_opt.zero_grad()
             loss.backward()
@@ -470,7 +477,7 @@ class ATAHRLTrainer:
             self.run_folder.log({"phase": "aux", "step": self.counters["aux"],
                                  "loss": f"{loss.item():.5f}",
                                  "aux_fatigue_mse": f"{f_mse.item():.5f}",
-                                 "aux_latency_mse": f"{lat.item():.5f}",
+                                 "aux_latency_mse": f"{lat_mse.item():.5f}",
                                  "wall_s": f"{self.wall:.1f}"})
             if self.counters["aux"] % self.s.checkpoint_every == 0:
                 self.save()
@@ -481,13 +488,14 @@ class ATAHRLTrainer:
         """Held-out reconstruction errors against the raw observation's."""
         data = self.aux_data(self.s.aux_batches, 1)
         with torch.no_grad():
-            _, f_mse, _ = self.aux_losses(data, sample=False)
+            _, f_mse, _, _ = self.aux_losses(data, sample=False)
             raw_f = ((data["fatigue_in"][:, 0] - data["fatigue_target"]) ** 2).mean()
             out = {"fatigue_mse": f_mse.item(), "fatigue_mse_raw": raw_f.item()}
             for g in ("robots", "tasks"):
                 est, _ = self.net.latency[g](data[f"{g}_in"])
-                out[f"{g}_mse"] = ((est - data[f"{g}_target"]) ** 2).mean().item()
-                out[f"{g}_mse_raw"] = ((data[f"{g}_in"] - data[f"{g}_target"]) ** 2).mean().item()
+                err, raw = est - data[f"{g}_target"], data[f"{g}_in"] - data[f"{g}_target"]
+                out[f"{g}_mse"], out[f"{g}_mse_raw"] = (err ** 2).mean().item(), (raw ** 2).mean().item()
+                out[f"{g}_mae"], out[f"{g}_mae_raw"] = err.abs().mean().item(), raw.abs().mean().item()
         return out
 
     # -- phases 2 and 3: policies -----------------------------------------------------------------
