@@ -353,3 +353,39 @@ def test_reallocatable_is_observed_and_the_kernel_keeps_what_truly_cannot_change
         assert np.array_equal(after.robot[both], proposal.robot[both])
         previous_open = ctx.reallocatable.copy()
     assert seen_stale_open > 0 and kept_against_proposal > 0
+
+
+def test_arrivals_guesses_captures_the_latency_hides_from_the_robot_rows():
+    """The `arrivals` reconstructor names POIs whose stale row still shows them unvisited while
+    their robot, seen fresh, has moved on: most of its guesses are true captures, it finds some
+    of the hidden ones, it never names a POI whose row is fresh, and plan_start takes what it
+    names as captured (not open; its image books the classifier)."""
+    from ata.plugins.policies.plan import plan_start
+    s = load_session(str(BASELINE_MISSION), [
+        "mission.uncertainty='high'", "mission.seed=4321",
+        "components.reconstructors=['identity','arrivals']"])
+    sim = Simulation(s.mission, s.registry, list(range(16)))
+    sim.reset()
+    right = wrong = hidden = 0
+    prev = None
+    while sim.sim.epoch < sim.sim.clock.n_epochs:
+        ctx = sim.begin_epoch()
+        guess = ctx.reconstructed["captured_guess"][..., 0] > 0.5
+        obs, truth = ctx.observed["tasks"], sim.last_truth["tasks"]
+        if ctx.epoch == 0:
+            assert not guess.any()
+        else:
+            captured = truth.col("unvisited") < 0.5
+            right += int((guess & captured).sum())
+            wrong += int((guess & ~captured).sum())
+            hidden += int(((obs.col("unvisited") > 0.5) & captured).sum())
+            changed = (obs.features != prev).any(-1)
+            assert not (guess & changed).any()          # a row that changed is fresh
+            assert not (guess & (obs.col("unvisited") < 0.5)).any()
+            if guess.any():
+                start = plan_start(ctx)
+                assert not start.open[guess].any()
+        prev = obs.features.copy()
+        sim.end_epoch(*sim.decide(ctx))
+    assert hidden > 0 and right >= 0.2 * hidden, (right, hidden)
+    assert wrong <= 0.25 * right, (right, wrong)

@@ -88,9 +88,13 @@ def plan_start(ctx: DecisionContext, capture_s: float = 3.0) -> PlanStart:
             robot_free[cb, cr] = now + dist / np.maximum(speed[cb, cr], 1e-9) + capture_s
             robot_xy[cb, cr] = dest
             robot_at[cb, cr] = target[cb, cr]
-        open_ = (S["tasks"].col("unvisited") > 0.5) & ctx.reallocatable
+        # a reconstructor's guess of captures the latency hides (``arrivals``), if any
+        guess = ctx.reconstructed.get("captured_guess")
+        hidden = guess[..., 0] > 0.5 if guess is not None else np.zeros((B, P), dtype=bool)
+        open_ = (S["tasks"].col("unvisited") > 0.5) & ctx.reallocatable & ~hidden
         if ctx.previous is not None:
-            waiting = (S["tasks"].col("captured") > 0.5) & (ctx.previous.classifier >= 0)
+            waiting = (((S["tasks"].col("captured") > 0.5) | hidden)
+                       & (ctx.previous.classifier >= 0))
             wb, wp = np.nonzero(waiting)
             np.add.at(human_free, (wb, ctx.previous.classifier[wb, wp]),
                       tables.T_BAR[1, diff[wb, wp]])
