@@ -52,7 +52,9 @@ def plan_start(ctx: DecisionContext, capture_s: float = 3.0) -> PlanStart:
 
     A robot on a leg is free at the end of it (remaining distance at its nominal speed plus the
     capture), at its target; a captured image waiting for a human classifier books that human
-    for t_bar at Medium quality (the image's quality is not observed).
+    for t_bar at Medium quality (the image's quality is not observed). A POI a reconstructor
+    guesses captured (``captured_guess`` in ``ctx.reconstructed``, from ``arrivals``) counts as
+    captured: not open, its image waiting.
     """
     I, S = ctx.inherent, ctx.observed
     B, P = ctx.reallocatable.shape
