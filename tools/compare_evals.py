@@ -4,9 +4,11 @@ ids both hold, with 1.96 standard errors, and how many of those scenarios differ
 comparing two sets of weights run under the same method names (docs/training.md, "Setting
 (b)"). COLUMN (default score) names another
 results.csv column to compare, e.g. expected_score: the score in expectation over the
-classification outcomes, far less noisy for comparisons (docs/evaluation.md).
+classification outcomes, far less noisy for comparisons (docs/evaluation.md). BASE_METHOD pairs
+every method of A with that one method of B instead, for variants named otherwise than the row
+they are compared with ("w/o.AUX + arrivals" against the suite's "w/o.AUX").
 
-Usage: python tools/compare_evals.py EVAL_DIR_A EVAL_DIR_B [COLUMN]
+Usage: python tools/compare_evals.py EVAL_DIR_A EVAL_DIR_B [COLUMN [BASE_METHOD]]
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import numpy as np
 from ata.experiment.report import md_table, read_results
 
 
-def main(a_dir: str, b_dir: str, column: str = "score") -> None:
+def main(a_dir: str, b_dir: str, column: str = "score", base_method: str | None = None) -> None:
     a, b = read_results(a_dir), read_results(b_dir)
     rows = []
     for method in a.methods:
@@ -26,7 +28,8 @@ def main(a_dir: str, b_dir: str, column: str = "score") -> None:
             for level in a.levels:
                 scores = [dict(zip(res.columns["scenario"][sel].tolist(),
                                    np.asarray(res.columns[column][sel], dtype=float)))
-                          for res in (a, b) for sel in [res.select(method, setting, level)]]
+                          for res, m in ((a, method), (b, base_method or method))
+                          for sel in [res.select(m, setting, level)]]
                 common = sorted(set(scores[0]) & set(scores[1]))
                 if not common:
                     continue
@@ -39,6 +42,6 @@ def main(a_dir: str, b_dir: str, column: str = "score") -> None:
 
 
 if __name__ == "__main__":
-    if len(sys.argv) not in (3, 4):
+    if len(sys.argv) not in (3, 4, 5):
         sys.exit(__doc__)
-    main(*sys.argv[1:4])
+    main(*sys.argv[1:5])

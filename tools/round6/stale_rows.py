@@ -4,9 +4,10 @@ whose observation differs from the true state (the kernel's `last_truth`), by wh
 task captured or classified that shows as before, a revealed kind or difficulty not yet shown,
 the observed `reallocatable` wrong; a failed robot shown working, a robot's target or position
 out of date. Per scenario and epoch, and whether the row is a copy of the one observed an epoch
-before (a row that changed is known fresh).
+before (a row that changed is known fresh). With `arrivals` last, w/o.AUX runs with the
+`arrivals` reconstructor too, and its guesses are counted: right (truly captured) and wrong.
 
-Usage: python tools/round6/stale_rows.py SETTING LEVEL [N]   (e.g. b high 24)
+Usage: python tools/round6/stale_rows.py SETTING LEVEL [N [arrivals]]   (e.g. b high 24)
 """
 
 from __future__ import annotations
@@ -22,13 +23,14 @@ from ata.experiment.runner import load_session
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def main(setting: str, level: str, n: int = 24) -> None:
+def main(setting: str, level: str, n: int = 24, arrivals: bool = False) -> None:
     mission = ROOT / "examples" / "missions" / "ata_hrl_wo_aux_a.toml"
     extra = ([f"{c}.checkpoint='builtin:ata_hrl_wo_aux_b_ft'" for c in ("attention", "ctr")]
              if setting == "b" else [])
     s = load_session(str(mission), [f"mission.setting='{setting}'",
                                      f"mission.uncertainty='{level}'", "mission.seed=99000017",
-                                     *extra])
+                                     *extra, *(["components.reconstructors=['identity','arrivals']"]
+                                                  if arrivals else [])])
     sim = Simulation(s.mission, s.registry, list(range(n)))
     sim.reset()
     counts: dict[str, float] = {}
@@ -57,6 +59,10 @@ def main(setting: str, level: str, n: int = 24) -> None:
             add("tasks: ... of them copies of the last", copy_t
                 & (ot.features != tt.features).any(-1))
             add("tasks: copies of the last (all)", copy_t)
+            if arrivals:
+                guess = ctx.reconstructed["captured_guess"][..., 0] > 0.5
+                add("arrivals: guessed captured, right", guess & (tt.col("unvisited") < 0.5))
+                add("arrivals: guessed captured, wrong", guess & (tt.col("unvisited") > 0.5))
             orb, trb = obs["robots"], truth["robots"]
             copy_r = (orb.features == prev["robots"]).all(-1)
             add("robots: failed, shown working", (orb.col("working") > 0.5)
@@ -74,4 +80,6 @@ def main(setting: str, level: str, n: int = 24) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], sys.argv[2], *(int(a) for a in sys.argv[3:4]))
+    if len(sys.argv) < 3 or sys.argv[5:] or sys.argv[4:5] not in ([], ["arrivals"]):
+        sys.exit(__doc__)
+    main(sys.argv[1], sys.argv[2], *(int(a) for a in sys.argv[3:4]), *(True for _ in sys.argv[4:5]))

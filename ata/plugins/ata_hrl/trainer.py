@@ -452,8 +452,9 @@ class ATAHRLTrainer:
                 x, y = x[idx[g]], y[idx[g]]
             est, _ = self.net.latency[g](x)
             err = est - y
-            lat_mse = lat_mse + (err * err).mean()
-            lat = lat + (err.abs().mean() if self.s.aux_loss == "l1" else (err * err).mean())
+            sq = (err * err).mean()
+            lat_mse = lat_mse + sq
+            lat = lat + (err.abs().mean() if self.s.aux_loss == "l1" else sq)
         return cvae, f_mse, lat, lat_mse
 
     def train_aux(self) -> dict[str, float]:
