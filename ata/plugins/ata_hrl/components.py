@@ -27,9 +27,10 @@ from ata.plugins.ata_hrl.decoder import DecodeSettings, Decoder
 from ata.plugins.ata_hrl.features import (GROUPS, inherent_features, seen_state, state_features,
                                           to_tensors)
 from ata.plugins.ata_hrl.network import ATAHRLNet, COND_FEATURES
+from ata.plugins.ata_hrl.status import StatusTracker, guesses as status_guesses
 from ata.plugins import tables
 from ata.plugins.policies.greedy import GreedyPolicy, RetaskCost
-from ata.plugins.policies.plan import PlanStart, plan_start, project
+from ata.plugins.policies.plan import PlanStart, as_seen, plan_start, project
 
 
 # -- what a training rollout records --------------------------------------------------------------
@@ -211,6 +212,7 @@ class CTRPolicy(LearnedComponent):
 
     @hookimpl
     def ata_should_reallocate(self, ctx: DecisionContext) -> np.ndarray:
+        ctx = as_seen(ctx)
         self._observe(ctx)
         B = ctx.reallocatable.shape[0]
         if self.hidden is None:
@@ -229,6 +231,7 @@ class CTRPolicy(LearnedComponent):
 
     @hookimpl
     def ata_reallocate(self, ctx: DecisionContext, active: np.ndarray) -> Allocation:
+        ctx = as_seen(ctx)
         self._observe(ctx)
         rows = np.nonzero(active)[0]
         out = ctx.previous.copy()
@@ -343,23 +346,30 @@ class AuxReconstructor:
     (B, H), the cVAE's fatigue estimate from the noisy observation conditioned on working hours
     and cognitive ability; ``aux_robots`` (B, R, 5) and ``aux_tasks`` (B, P, 7), the stacked-GRU
     estimates of the current robot and task rows (in the space of ``state_features``) from each
-    entity's sequence of observed rows. Without it the ``identity`` reconstructor leaves the
-    raw state (the w/o.AUX ablation)."""
+    entity's sequence of observed rows; with a checkpoint that has a status head,
+    ``captured_guess`` and ``committed_guess`` (B, P, 1), the POIs the latency shows open that the
+    head takes as captured or committed, from features that read across rows and the previous
+    epoch's plan (``ata.plugins.ata_hrl.status``). Without it the ``identity`` reconstructor
+    leaves the raw state (the w/o.AUX ablation)."""
 
     @dataclass
     class Settings:
         checkpoint: str = param("builtin:ata_hrl_a", help="trained weights: a path or "
                                 "builtin:NAME")
-        parts: list[str] = param(["fatigue", "robots", "tasks"],
-                                 choices=("fatigue", "robots", "tasks"),
-                                 help="what it reconstructs; the rest stays as observed")
+        parts: list[str] = param(["fatigue", "robots", "tasks", "status"],
+                                 choices=("fatigue", "robots", "tasks", "status"),
+                                 help="what it reconstructs; the rest stays as observed "
+                                 "(status: only with a checkpoint that has a status head)")
 
     def __init__(self, settings: "AuxReconstructor.Settings", mission: Any,
-                 net: ATAHRLNet | None = None):
+                 net: ATAHRLNet | None = None, guess: bool = True):
         self.settings = settings if settings is not None else self.Settings()
         self.from_checkpoint = net is None       # a trainer's live network reports nothing
         self.net = net if net is not None else load_net(self.settings.checkpoint)
         self.hidden: dict[str, torch.Tensor | None] = {"robots": None, "tasks": None}
+        self.tracker = StatusTracker()
+        self.guess = guess                       # false: features only (a trainer's teacher)
+        self.status_features: np.ndarray | None = None    # this epoch's (B, P, F), if any
 
     @hookimpl
     def ata_trained_on(self) -> list[tuple[int, int, int]]:
@@ -384,3 +394,9 @@ class AuxReconstructor:
                 est, self.hidden[group] = self.net.latency[group](x.reshape(B * N, 1, F),
                                                                   self.hidden[group])
                 out[f"aux_{group}"] = est.reshape(B, N, F).numpy().astype(np.float64)
+            head = getattr(self.net, "status", None)
+            if "status" in self.settings.parts and (head is not None or not self.guess):
+                self.status_features = self.tracker.step(sim, obs, inherent)
+                if self.status_features is not None and self.guess:
+                    prob = torch.sigmoid(head(torch.as_tensor(self.status_features))).numpy()
+                    out.update(status_guesses(self.status_features, prob))

@@ -24,6 +24,7 @@ from torch import nn
 from ata.plugins.ata_hrl.decoder import (CLS_FEATURES, KEEP_FEATURES, NAV_FEATURES,
                                          POI_FEATURES, ROBOT_FEATURES)
 from ata.plugins.ata_hrl.features import GROUPS
+from ata.plugins.ata_hrl.status import STATUS_FEATURES
 
 NEG = -1e9
 I_DIMS = {"humans": 5, "robots": 3, "tasks": 7}
@@ -45,6 +46,7 @@ class NetConfig:
     hidden: int = 64
     z_dim: int = 4
     recon_hidden: int = 32
+    status_hidden: int = 0      # width of the status head (0: none, as in checkpoints before it)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -261,6 +263,20 @@ class LatencyGRU(nn.Module):
         return seq + self.ff(out), hidden
 
 
+class StatusHead(nn.Module):
+    """Per POI, from its status features (``ata.plugins.ata_hrl.status``), the logits of its
+    true unvisited, classified and reallocatable flags."""
+
+    def __init__(self, features: int, cfg: NetConfig):
+        super().__init__()
+        h = cfg.status_hidden
+        self.mlp = nn.Sequential(nn.Linear(features, h), nn.ReLU(), nn.Linear(h, h), nn.ReLU(),
+                                 nn.Linear(h, 3))
+
+    def forward(self, feats: torch.Tensor) -> torch.Tensor:
+        return self.mlp(feats)
+
+
 class ATAHRLNet(nn.Module):
     """Every learned part of ATA-HRL in one module, so one checkpoint holds them: the ITA
     policy, pi_C, pi_TR, and the auxiliary reconstruction."""
@@ -274,3 +290,9 @@ class ATAHRLNet(nn.Module):
         self.fatigue = FatigueCVAE(self.cfg)
         self.latency = nn.ModuleDict({"robots": LatencyGRU(S_DIMS["robots"], self.cfg),
                                       "tasks": LatencyGRU(S_DIMS["tasks"], self.cfg)})
+        if self.cfg.status_hidden > 0:
+            # initialised from a generator of its own: the parts above start as they did
+            # before the head existed, whatever the global torch state
+            with torch.random.fork_rng():
+                torch.manual_seed(7919)
+                self.status = StatusHead(STATUS_FEATURES, self.cfg)

@@ -46,6 +46,7 @@ from ata.plugins.ata_hrl.components import (AttentionITA, AuxReconstructor, CTRP
 from ata.plugins.ata_hrl.features import GROUPS, state_features, to_tensors
 from ata.plugins.ata_hrl.network import ATAHRLNet, FatigueCVAE, NetConfig
 from ata.plugins.ata_hrl.rewards import hierarchical_rewards, rewards_to_go
+from ata.plugins.ata_hrl.status import guesses as status_guesses, status_targets
 from ata.training import VALIDATION_SEED_OFFSET, TrainRun, resolve, trained_on
 
 PHASE_BASE = {"aux": 0, "ita": 10_000_000, "ctr": 20_000_000}
@@ -109,6 +110,18 @@ class ATAHRLTrainer:
                               "squared error (the mean of what a row may be) or absolute "
                               "error (its median: a row more often fresh than stale is left "
                               "as observed)")
+        status_hidden: int = param(64, min=0, help="width of the aux module's status head "
+                                   "(0: none); trained only where the reconstructors include "
+                                   "aux")
+        status_levels: list[str] = param(["low", "medium", "high"],
+                                         choices=("none", "low", "medium", "high"),
+                                         help="uncertainty levels of the status head's teacher "
+                                         "rollouts")
+        status_batches: int = param(4, min=1, help="teacher rollouts (of batch_size scenarios) "
+                                    "per team setting and level for the status head's data")
+        status_steps: int = param(2000, min=0, help="supervised steps of the status head")
+        status_lr: float = param(3e-3, min=0.0, max=1.0, help="Adam learning rate of the "
+                                 "status head")
         eval_every: int = param(25, min=1, help="held-out validation every N steps")
         eval_scenarios: int = param(64, min=1, help="validation scenarios per team setting "
                                     "(and per uncertainty level, with uncertainty_levels)")
@@ -140,17 +153,21 @@ class ATAHRLTrainer:
                                "condition or reallocation slot", file=mission.source)
         self.cfg = NetConfig(d_model=settings.d_model, heads=settings.heads,
                              layers=settings.layers, hidden=settings.hidden,
-                             z_dim=settings.z_dim, recon_hidden=settings.recon_hidden)
+                             z_dim=settings.z_dim, recon_hidden=settings.recon_hidden,
+                             status_hidden=settings.status_hidden if self.trains_aux else 0)
         torch.manual_seed(settings.seed)
         self.net = ATAHRLNet(self.cfg)
         self.policy_params = [p for n, p in self.net.named_parameters()
-                              if not n.startswith(("fatigue.", "latency."))]
+                              if not n.startswith(("fatigue.", "latency.", "status."))]
         self.opt = torch.optim.Adam(self.policy_params, lr=settings.lr)
         self.aux_opt = torch.optim.Adam(list(self.net.fatigue.parameters())
                                         + list(self.net.latency.parameters()),
                                         lr=settings.aux_lr)
+        self.status_opt = (torch.optim.Adam(self.net.status.parameters(), lr=settings.status_lr)
+                           if self.cfg.status_hidden else None)
         self.gen = torch.Generator().manual_seed(settings.seed + 1)
-        self.counters = {"aux": 0, "ita": 0, "ctr": 0, "episodes": 0}
+        self.status_gen = torch.Generator().manual_seed(settings.seed + 2)
+        self.counters = {"aux": 0, "status": 0, "ita": 0, "ctr": 0, "episodes": 0}
         self.validated_at_start: set[str] = set()   # phases whose step-0 validation is logged
         self.best_eval = -math.inf
         self.wall = 0.0
@@ -161,7 +178,8 @@ class ATAHRLTrainer:
         s = self.s
         per_step = s.batch_size
         ranges = [(s.seed, PHASE_BASE[p], PHASE_BASE[p] + PHASE_SPAN) for p in PHASE_BASE]
-        steps = {"aux": s.aux_batches + 1, "ita": s.ita_steps, "ctr": s.ctr_steps}
+        steps = {"aux": s.aux_batches + 1 + self._status_rollouts(s.status_batches + 1),
+                 "ita": s.ita_steps, "ctr": s.ctr_steps}
         for phase, n in steps.items():
             if n * per_step > PHASE_SPAN:
                 raise MissionError(f"[{self.name}]", "batch_size", f"{phase}: {n} steps of "
@@ -179,6 +197,7 @@ class ATAHRLTrainer:
     def phases(self) -> dict[str, int]:
         s = self.s
         return {"aux": s.aux_steps if self.trains_aux else 0,
+                "status": s.status_steps if self.cfg.status_hidden else 0,
                 "ita": s.ita_steps if self.trains_ita and not s.ita_from else 0,
                 "ctr": s.ctr_steps if (self.trains_cond or self.trains_tr) else 0}
 
@@ -186,7 +205,7 @@ class ATAHRLTrainer:
         return sum(self.phases().values())
 
     def done_steps(self) -> int:
-        return sum(self.counters[k] for k in ("aux", "ita", "ctr"))
+        return sum(self.counters[k] for k in ("aux", "status", "ita", "ctr"))
 
     def run(self, run: TrainRun, resume: bool = False) -> dict[str, Any]:
         """Every phase, resuming wherever the counters stand."""
@@ -200,6 +219,7 @@ class ATAHRLTrainer:
             if self.s.ita_from:
                 self.take_ita(self.s.ita_from)
         report = self.train_aux()
+        report.update(self.train_status())
         self.train_policy("ita")
         self.train_policy("ctr")
         self._tr_at_step_0()
@@ -213,7 +233,9 @@ class ATAHRLTrainer:
         return {"kind": KIND, "format": FORMAT, "model": self.net.state_dict(),
                 "config": self.cfg.as_dict(), "optimizer": self.opt.state_dict(),
                 "aux_optimizer": self.aux_opt.state_dict(),
-                "rng": {"torch": torch.get_rng_state(), "sampler": self.gen.get_state()},
+                **({"status_optimizer": self.status_opt.state_dict()} if self.status_opt else {}),
+                "rng": {"torch": torch.get_rng_state(), "sampler": self.gen.get_state(),
+                        "status": self.status_gen.get_state()},
                 "counters": dict(self.counters), "best_eval": float(self.best_eval),
                 "validated_at_start": sorted(self.validated_at_start),
                 "wall_s": float(self.wall), "mission": self.mission.to_toml(),
@@ -251,14 +273,21 @@ class ATAHRLTrainer:
         data = read_checkpoint(path, KIND)
         if not whole and "ita" not in data.get("trained", []):
             raise CheckpointError(path, "trained no ITA policy (ita_from needs one that did)")
-        if data.get("config") != self.cfg.as_dict():
+        # the status head's width may differ: a checkpoint from before the head has none, and
+        # the head (trained in this run's status phase) is not taken from it
+        mine = {k: v for k, v in self.cfg.as_dict().items() if k != "status_hidden"}
+        theirs = {k: v for k, v in (data.get("config") or {}).items() if k != "status_hidden"}
+        if theirs != mine:
             raise CheckpointError(path, f"architecture {data.get('config')} does not match "
                                         f"the training's {self.cfg.as_dict()}")
         prefix = "" if whole else "ita."
         part = self.net if whole else self.net.ita
-        weights = {k[len(prefix):]: v for k, v in data["model"].items() if k.startswith(prefix)}
+        weights = {k[len(prefix):]: v for k, v in data["model"].items() if k.startswith(prefix)
+                   and not k.startswith("status.")}
         try:
-            part.load_state_dict(weights)
+            missing, unexpected = part.load_state_dict(weights, strict=False)
+            if unexpected or any(not k.startswith("status.") for k in missing):
+                raise RuntimeError(f"missing {missing}, unexpected {unexpected}")
         except RuntimeError as exc:
             raise CheckpointError(path, "its networks do not fit the architecture: "
                                         f"{str(exc).splitlines()[0][:200]}") from None
@@ -271,6 +300,9 @@ class ATAHRLTrainer:
         try:
             self.opt.load_state_dict(data["optimizer"])
             self.aux_opt.load_state_dict(data["aux_optimizer"])
+            if self.status_opt is not None:
+                self.status_opt.load_state_dict(data["status_optimizer"])
+                self.status_gen.set_state(data["rng"]["status"])
             torch.set_rng_state(data["rng"]["torch"])
             self.gen.set_state(data["rng"]["sampler"])
             self.counters.update({k: int(v) for k, v in data["counters"].items()})
@@ -376,7 +408,8 @@ class ATAHRLTrainer:
         events) and log the observed and the true S of every epoch."""
         from ata import hookimpl
 
-        log = {"raw": [], "true": [], "fatigue": [], "cognitive": None}
+        log = {"raw": [], "true": [], "fatigue": [], "cognitive": None,
+               "status_in": [], "status_target": []}
         greedy = build_component(self.registry, mission, "policy", "greedy")
         on_event = build_component(self.registry, mission, "condition", "on_event")
 
@@ -401,10 +434,15 @@ class ATAHRLTrainer:
                 log["raw"].append(state_features(ctx.observed))
                 log["true"].append(state_features(truth))
                 log["fatigue"].append(truth["humans"].col("fatigue").copy())
+                if recon.status_features is not None and ctx.epoch >= 1:
+                    log["status_in"].append(recon.status_features)
+                    log["status_target"].append(status_targets(truth))
 
         teacher = Teacher()
+        # features only: the teacher plans from the observation as it is
+        recon = AuxReconstructor(None, mission, net=self.net, guess=False)
         overrides = {"initial": teacher, "condition": teacher, "reallocation": teacher,
-                     "reconstructors": AuxReconstructor(None, mission, net=self.net)}
+                     "reconstructors": recon}
         teacher.simulation = Simulation(mission, self.registry, ids, overrides=overrides)
         with torch.no_grad():
             teacher.simulation.run()
@@ -434,6 +472,68 @@ class ATAHRLTrainer:
             out[f"{g}_in"] = np.concatenate(seq_in[g])
             out[f"{g}_target"] = np.concatenate(seq_target[g])
         return {k: torch.as_tensor(v, dtype=torch.float32) for k, v in out.items()}
+
+    # -- phase 1b: the aux module's status head --------------------------------------------------
+    def _status_rollouts(self, batches: int) -> int:
+        """Teacher rollouts of `batches` batches per team setting and status level."""
+        return batches * len(self.s.team_settings) * len(self.s.status_levels)
+
+    def status_data(self, first: int, batches: int) -> tuple[torch.Tensor, torch.Tensor]:
+        """(features, targets) of every POI at every epoch >= 1 of greedy teacher rollouts with
+        the injectors on: `batches` batches per team setting and level, from the aux phase's id
+        range, after the aux phase's own rollouts."""
+        X, Y = [], []
+        combos = [(t, lv) for t in self.s.team_settings for lv in self.s.status_levels]
+        for i in range(batches):
+            for j, (setting, level) in enumerate(combos):
+                k = self.s.aux_batches + 1 + (first + i) * len(combos) + j
+                log = self.teacher_log(self._mission(f"{setting}/{level}", self.s.seed),
+                                       self._ids("aux", k))
+                X += [x.reshape(-1, x.shape[-1]) for x in log["status_in"]]
+                Y += [y.reshape(-1, y.shape[-1]) for y in log["status_target"]]
+        return torch.as_tensor(np.concatenate(X)), torch.as_tensor(np.concatenate(Y))
+
+    def train_status(self) -> dict[str, float]:
+        steps = self.phases()["status"]
+        if steps == 0 or self.counters["status"] >= steps:
+            return {}
+        x, y = self.status_data(0, self.s.status_batches)
+        while self.counters["status"] < steps:
+            t0 = time.perf_counter()
+            idx = torch.randint(0, x.shape[0], (min(x.shape[0], 4096),), generator=self.status_gen)
+            loss = torch.nn.functional.binary_cross_entropy_with_logits(
+                self.net.status(x[idx]), y[idx])
+            self.status_opt.zero_grad()
+            loss.backward()
+            self.status_opt.step()
+            self.counters["status"] += 1
+            self.wall += time.perf_counter() - t0
+            if self.counters["status"] % 50 == 0 or self.counters["status"] == steps:
+                self.run_folder.log({"phase": "status", "step": self.counters["status"],
+                                     "loss": f"{loss.item():.5f}", "wall_s": f"{self.wall:.1f}"})
+            if self.counters["status"] % (self.s.checkpoint_every * 50) == 0:
+                self.save()
+        self.save()
+        return self.status_report()
+
+    def status_report(self) -> dict[str, float]:
+        """On held-out teacher rollouts (one batch per team setting and level): per POI-epoch
+        the latency shows open, how many are truly captured / committed and how many of those
+        the head finds, and how many it takes wrongly."""
+        x, y = self.status_data(self.s.status_batches, 1)
+        with torch.no_grad():
+            prob = torch.sigmoid(self.net.status(x)).numpy()
+        g = status_guesses(x.numpy(), prob)
+        out = {}
+        for name, col, guess in (("captured", 0, "captured_guess"),
+                                 ("committed", 2, "committed_guess")):
+            shown = x.numpy()[:, 0 if col == 0 else 4] > 0.5
+            hidden = shown & (y.numpy()[:, col] < 0.5)
+            took = g[guess][:, 0] > 0.5
+            out[f"status_{name}_hidden"] = float(hidden.mean())
+            out[f"status_{name}_found"] = float((took & hidden).mean())
+            out[f"status_{name}_wrong"] = float((took & ~hidden).mean())
+        return out
 
     def aux_losses(self, data: dict[str, torch.Tensor], idx: dict | None = None,
                    sample: bool = True) -> tuple[torch.Tensor, ...]:

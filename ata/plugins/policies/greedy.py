@@ -30,7 +30,7 @@ from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext
 from ata.plugins import tables
 from ata.plugins.humans import retasked_humans
-from ata.plugins.policies.plan import PlanStart, plan_start, project
+from ata.plugins.policies.plan import PlanStart, as_seen, plan_start, project
 
 
 class GreedyPolicy:
@@ -62,6 +62,7 @@ class GreedyPolicy:
 
     @hookimpl
     def ata_reallocate(self, ctx: DecisionContext, active: np.ndarray) -> Allocation:
+        ctx = as_seen(ctx)
         open_ = ctx.reallocatable & active[:, None]
         cost = RetaskCost.of(ctx)
         if not self.s.retask_cost or cost.free or self.planned_attrs is None:

@@ -11,6 +11,7 @@ classification that cannot end by the horizon earns nothing.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,15 +48,27 @@ class PlanStart:
         return self.points.shape[0]
 
 
+def as_seen(ctx: DecisionContext) -> DecisionContext:
+    """`ctx` as the policy sees it with a reconstructor's guesses: POIs guessed committed (a
+    robot on its way; ``committed_guess`` in ``ctx.reconstructed``) are not reallocatable. The
+    same `ctx` when no reconstructor guesses any."""
+    guess = ctx.reconstructed.get("committed_guess")
+    if guess is None:
+        return ctx
+    return dataclasses.replace(ctx, reallocatable=ctx.reallocatable & ~(guess[..., 0] > 0.5))
+
+
 def plan_start(ctx: DecisionContext, capture_s: float = 3.0) -> PlanStart:
     """The plan's starting state at this epoch, from I and the observed S.
 
     A robot on a leg is free at the end of it (remaining distance at its nominal speed plus the
     capture), at its target; a captured image waiting for a human classifier books that human
     for t_bar at Medium quality (the image's quality is not observed). A POI a reconstructor
-    guesses captured (``captured_guess`` in ``ctx.reconstructed``, from ``arrivals``) counts as
-    captured: not open, its image waiting.
+    guesses captured (``captured_guess`` in ``ctx.reconstructed``, from ``arrivals`` or the
+    ``aux`` status head) counts as captured: not open, its image waiting; one it guesses
+    committed (``committed_guess``) as not reallocatable (`as_seen`).
     """
+    ctx = as_seen(ctx)
     I, S = ctx.inherent, ctx.observed
     B, P = ctx.reallocatable.shape
     H, R = ctx.sizes.humans, ctx.sizes.robots
