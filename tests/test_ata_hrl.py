@@ -29,7 +29,8 @@ TINY = ["mission.setting='custom'", "mission.humans=3", "mission.robots=4", "mis
         "ata_hrl.ita_steps=2", "ata_hrl.ctr_steps=2", "ata_hrl.aux_steps=3",
         "ata_hrl.aux_batches=1", "ata_hrl.eval_every=1", "ata_hrl.eval_scenarios=2",
         "ata_hrl.checkpoint_every=1", "ata_hrl.d_model=16", "ata_hrl.hidden=16",
-        "ata_hrl.recon_hidden=8"]
+        "ata_hrl.recon_hidden=8", "ata_hrl.status_steps=3", "ata_hrl.status_batches=1",
+        "ata_hrl.status_hidden=8", "ata_hrl.status_levels=['high']"]
 
 
 def session(*extra, plugins=("ctr", "aux")):
@@ -301,7 +302,8 @@ def test_ita_from_shares_an_ita_and_init_from_trains_on(tmp_path):
         no_ita.take_ita(str(tmp_path / "no_ita" / "best.pt"))
 
 
-@pytest.mark.parametrize("phase, step", [("aux", "2"), ("ita", "1"), ("ctr", "2")])
+@pytest.mark.parametrize("phase, step", [("aux", "2"), ("status", "2"), ("ita", "1"),
+                                         ("ctr", "2")])
 def test_resume_after_kill_ends_with_the_same_weights(tmp_path, phase, step):
     whole, resumed = whole_and_killed(session(), tmp_path, phase, step)
     assert resumed.counters == whole.counters
@@ -486,3 +488,85 @@ def test_aux_reconstructs_only_the_parts_it_is_given():
     np.testing.assert_allclose(got["robots"], seen["all"][0]["robots"])
     with pytest.raises(MissionError, match="parts"):
         load_session(str(training_mission_for(["ctr", "aux"])), [*TINY, "aux.parts=['speed']"])
+
+
+# --- the aux module's status head --------------------------------------------------------------------
+
+def test_status_head_trains_to_find_hidden_captures(tmp_path):
+    """Fitted on teacher rollouts at high uncertainty, the head finds, on held-out rollouts,
+    some of the captures the latency hides, and takes fewer open POIs wrongly as captured than
+    it finds; before training it finds less."""
+    s = session("ata_hrl.batch_size=8", "ata_hrl.status_batches=3",
+                "ata_hrl.status_steps=400", "ata_hrl.status_hidden=32",
+                "ata_hrl.ita_steps=0", "ata_hrl.ctr_steps=0", "ata_hrl.aux_steps=0")
+    trainer = build_trainer(s)
+    from ata.training import TrainRun
+    trainer.run_folder = TrainRun(tmp_path, s.mission.to_toml(), trainer.log_fields)
+    before = trainer.status_report()
+    after = trainer.train_status()
+    assert after["status_captured_hidden"] > 0
+    assert after["status_captured_found"] > after["status_captured_wrong"]
+    assert after["status_captured_found"] - after["status_captured_wrong"] \
+        > before["status_captured_found"] - before["status_captured_wrong"]
+    assert trainer.counters["status"] == 400
+
+
+def test_status_guesses_reach_the_plan_start_and_the_policy_view():
+    """A POI guessed committed is not reallocatable to the policies (`as_seen`) and not open in
+    the plan start; one guessed captured is not open either; without guesses nothing changes."""
+    from ata.plugins.policies.plan import as_seen, plan_start
+    s = load_session(str(BASELINE_MISSION), TINY[:5] + ["mission.uncertainty='high'"])
+    sim = Simulation(s.mission, s.registry, [0, 1])
+    sim.reset()
+    sim.end_epoch(*sim.decide(sim.begin_epoch()))
+    ctx = sim.begin_epoch()
+    assert as_seen(ctx) is ctx
+    base = plan_start(ctx)
+    B, P = ctx.reallocatable.shape
+    committed = np.zeros((B, P, 1))
+    captured = np.zeros((B, P, 1))
+    open_now = np.argwhere(base.open)
+    (b1, p1), (b2, p2) = open_now[0], open_now[-1]
+    committed[b1, p1] = 1.0
+    captured[b2, p2] = 1.0
+    ctx.reconstructed.update(committed_guess=committed, captured_guess=captured)
+    seen = as_seen(ctx)
+    assert not seen.reallocatable[b1, p1]
+    assert (seen.reallocatable | (committed[..., 0] > 0.5) == ctx.reallocatable).all()
+    start = plan_start(ctx)
+    assert not start.open[b1, p1] and not start.open[b2, p2]
+    changed = base.open & ~start.open
+    assert changed.sum() == 2
+
+
+def test_status_head_is_optional_and_checkpoints_before_it_still_serve(tmp_path):
+    """A checkpoint without a head (status_hidden = 0, as every one before the head) loads, and
+    its aux component writes no guesses; its ITA serves a training with a head (ita_from)."""
+    no_head = train(session("ata_hrl.status_hidden=0", "ata_hrl.ctr_steps=0"),
+                    tmp_path / "no_head")
+    assert not hasattr(no_head.net, "status")
+    best = tmp_path / "no_head" / "best.pt"
+    s = load_session(str(tmp_path / "no_head" / "mission.resolved.toml"),
+                     ["mission.uncertainty='high'", f"aux.checkpoint='{best}'",
+                      f"attention.checkpoint='{best}'", f"ctr.checkpoint='{best}'"])
+    sim = Simulation(s.mission, s.registry, [0, 1])
+    sim.reset()
+    for _ in range(3):
+        ctx = sim.begin_epoch()
+        assert "captured_guess" not in ctx.reconstructed and "aux_fatigue" in ctx.reconstructed
+        sim.end_epoch(*sim.decide(ctx))
+    with_head = train(session(f"ata_hrl.ita_from='{best}'", "ata_hrl.ctr_steps=0"),
+                      tmp_path / "with_head")
+    assert hasattr(with_head.net, "status")
+    taken = read_checkpoint(best, "ata_hrl")["model"]
+    for k, v in with_head.net.ita.state_dict().items():
+        assert torch.equal(v, taken[f"ita.{k}"]), k
+    s = load_session(str(tmp_path / "with_head" / "mission.resolved.toml"),
+                     ["mission.uncertainty='high'"]
+                     + [f"{c}.checkpoint='{tmp_path / 'with_head' / 'best.pt'}'"
+                        for c in ("aux", "attention", "ctr")])
+    sim = Simulation(s.mission, s.registry, [0, 1])
+    sim.reset()
+    sim.end_epoch(*sim.decide(sim.begin_epoch()))
+    ctx = sim.begin_epoch()
+    assert ctx.reconstructed["captured_guess"].shape == ctx.reallocatable.shape + (1,)

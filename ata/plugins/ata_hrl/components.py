@@ -360,6 +360,8 @@ class AuxReconstructor:
                                  choices=("fatigue", "robots", "tasks", "status"),
                                  help="what it reconstructs; the rest stays as observed "
                                  "(status: only with a checkpoint that has a status head)")
+        guesses: list[str] = param(["captured", "committed"], choices=("captured", "committed"),
+                                   help="which of the status head's guesses reach the policies")
 
     def __init__(self, settings: "AuxReconstructor.Settings", mission: Any,
                  net: ATAHRLNet | None = None, guess: bool = True):
@@ -399,4 +401,6 @@ class AuxReconstructor:
                 self.status_features = self.tracker.step(sim, obs, inherent)
                 if self.status_features is not None and self.guess:
                     prob = torch.sigmoid(head(torch.as_tensor(self.status_features))).numpy()
-                    out.update(status_guesses(self.status_features, prob))
+                    out.update({f"{k}_guess": v for k, v in
+                                status_guesses(self.status_features, prob).items()
+                                if k in self.settings.guesses})

@@ -100,8 +100,8 @@ def guesses(feats: np.ndarray, prob: np.ndarray) -> dict[str, np.ndarray]:
     committed."""
     captured = (feats[..., 0] > 0.5) & (prob[..., 0] < 0.5)
     committed = (feats[..., 4] > 0.5) & (prob[..., 2] < 0.5)
-    return {"captured_guess": captured[..., None].astype(float),
-            "committed_guess": committed[..., None].astype(float)}
+    return {"captured": captured[..., None].astype(float),
+            "committed": committed[..., None].astype(float)}
 
 
 def status_targets(truth: Observation) -> np.ndarray:

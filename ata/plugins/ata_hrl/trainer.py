@@ -508,10 +508,9 @@ class ATAHRLTrainer:
             self.status_opt.step()
             self.counters["status"] += 1
             self.wall += time.perf_counter() - t0
-            if self.counters["status"] % 50 == 0 or self.counters["status"] == steps:
-                self.run_folder.log({"phase": "status", "step": self.counters["status"],
-                                     "loss": f"{loss.item():.5f}", "wall_s": f"{self.wall:.1f}"})
-            if self.counters["status"] % (self.s.checkpoint_every * 50) == 0:
+            self.run_folder.log({"phase": "status", "step": self.counters["status"],
+                                 "loss": f"{loss.item():.5f}", "wall_s": f"{self.wall:.1f}"})
+            if self.counters["status"] % self.s.checkpoint_every == 0:
                 self.save()
         self.save()
         return self.status_report()
@@ -525,8 +524,7 @@ class ATAHRLTrainer:
             prob = torch.sigmoid(self.net.status(x)).numpy()
         g = status_guesses(x.numpy(), prob)
         out = {}
-        for name, col, guess in (("captured", 0, "captured_guess"),
-                                 ("committed", 2, "committed_guess")):
+        for name, col, guess in (("captured", 0, "captured"), ("committed", 2, "committed")):
             shown = x.numpy()[:, 0 if col == 0 else 4] > 0.5
             hidden = shown & (y.numpy()[:, col] < 0.5)
             took = g[guess][:, 0] > 0.5
