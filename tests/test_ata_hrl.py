@@ -260,7 +260,7 @@ def test_the_trainer_trains_what_the_slots_hold():
 def test_training_run_of_wo_c_writes_checkpoints_that_run_as_components(tmp_path):
     s = session("components.condition='always'")
     trainer = train(s, tmp_path)
-    assert trainer.counters == {"aux": 3, "ita": 2, "ctr": 2, "episodes": 16}
+    assert trainer.counters == {"aux": 3, "status": 3, "ita": 2, "ctr": 2, "episodes": 16}
     data = torch.load(tmp_path / "checkpoint.pt", weights_only=True)
     assert data["kind"] == "ata_hrl" and data["trained"] == ["ita", "tr", "aux"]
     assert set(data) >= {"model", "optimizer", "aux_optimizer", "rng", "counters", "config",
