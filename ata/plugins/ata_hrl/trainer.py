@@ -110,9 +110,9 @@ class ATAHRLTrainer:
                               "squared error (the mean of what a row may be) or absolute "
                               "error (its median: a row more often fresh than stale is left "
                               "as observed)")
-        status_hidden: int = param(64, min=0, help="width of the aux module's status head "
+        status_hidden: int = param(0, min=0, help="width of the aux module's status head "
                                    "(0: none); trained only where the reconstructors include "
-                                   "aux")
+                                   "aux (the shipped (b) weights: 64)")
         status_levels: list[str] = param(["low", "medium", "high"],
                                          choices=("none", "low", "medium", "high"),
                                          help="uncertainty levels of the status head's teacher "
