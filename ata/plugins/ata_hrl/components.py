@@ -370,7 +370,7 @@ class AuxReconstructor:
         self.net = net if net is not None else load_net(self.settings.checkpoint)
         self.hidden: dict[str, torch.Tensor | None] = {"robots": None, "tasks": None}
         self.tracker = StatusTracker()
-        self.guess = guess                       # false: features only (a trainer's teacher)
+        self.guess = guess          # false: the status features only (a trainer's teacher)
         self.status_features: np.ndarray | None = None    # this epoch's (B, P, F), if any
 
     @hookimpl
@@ -397,7 +397,7 @@ class AuxReconstructor:
                                                                   self.hidden[group])
                 out[f"aux_{group}"] = est.reshape(B, N, F).numpy().astype(np.float64)
             head = getattr(self.net, "status", None)
-            if "status" in self.settings.parts and (head is not None or not self.guess):
+            if "status" in self.settings.parts and head is not None:
                 self.status_features = self.tracker.step(sim, obs, inherent)
                 if self.status_features is not None and self.guess:
                     prob = torch.sigmoid(head(torch.as_tensor(self.status_features))).numpy()
