@@ -6,8 +6,6 @@ from __future__ import annotations
 
 import multiprocessing
 import os
-import signal
-import threading
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from typing import Any, Callable, Iterator, Sequence
 
@@ -56,34 +54,6 @@ class SerialExecutor(Executor):
             yield i, fn(unit)
 
 
-class _CtrlC:
-    """Remembers a Ctrl-C (SIGINT) while the pool runs. Python raises KeyboardInterrupt wherever
-    the main thread is when the signal comes; if that is a finalizer (a ``__del__``, a weakref
-    callback), Python prints it and goes on, and the Ctrl-C would be lost. The pool's loop asks
-    `hit` after every wait and raises it again. Only in the main thread, and only where SIGINT
-    is handled by Python's handler (not ignored)."""
-
-    def __init__(self) -> None:
-        self.hit = False
-        self.previous: Any = None
-
-    def __enter__(self) -> "_CtrlC":
-        if threading.current_thread() is threading.main_thread():
-            previous = signal.getsignal(signal.SIGINT)
-            if previous is signal.default_int_handler:
-                self.previous = previous
-                signal.signal(signal.SIGINT, self._handle)
-        return self
-
-    def _handle(self, signum, frame) -> None:
-        self.hit = True
-        raise KeyboardInterrupt
-
-    def __exit__(self, *exc) -> None:
-        if self.previous is not None:
-            signal.signal(signal.SIGINT, self.previous)
-
-
 class ProcessExecutor(Executor):
     """A local pool of worker processes (spawned, so that nothing the parent imported, such as
     torch's thread pools, is inherited half-initialised)."""
@@ -106,18 +76,13 @@ class ProcessExecutor(Executor):
                                    initializer=_die_with_parent, initargs=(os.getpid(),))
         finished = False
         try:
-            with _CtrlC() as ctrl_c:
-                pending = {pool.submit(fn, unit): i for i, unit in enumerate(units)}
-                while pending:
-                    done, _ = wait(pending, timeout=0.5, return_when=FIRST_COMPLETED)
-                    if ctrl_c.hit:
-                        raise KeyboardInterrupt
-                    for future in done:
-                        i = pending.pop(future)
-                        yield i, future.result()
-                        if ctrl_c.hit:
-                            raise KeyboardInterrupt
-                finished = True
+            pending = {pool.submit(fn, unit): i for i, unit in enumerate(units)}
+            while pending:
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for future in done:
+                    i = pending.pop(future)
+                    yield i, future.result()
+            finished = True
         finally:
             if not finished:
                 # interrupted (Ctrl-C, an error, the caller stopped): stop the units under way
