@@ -46,10 +46,18 @@ def rows(folder: Path) -> list[dict]:
         return [{k: v for k, v in r.items() if k != "wall_s"} for r in csv.DictReader(f)]
 
 
+def _sigint_as_in_a_terminal() -> None:
+    """In the child: SIGINT at its default, as a terminal's Ctrl-C finds it. A test run started
+    in the background by a non-interactive shell inherits SIGINT ignored, and Python then
+    installs no handler for it."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def ata_eval(suite: Path, out: Path, *extra: str) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-c", "from ata.cli import app; app()", "eval",
                              str(suite), "--chunk-size", "4", "-o", str(out), "-q", *extra],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_sigint_as_in_a_terminal if os.name == "posix" else None)
 
 
 def lines(path: Path) -> int:
