@@ -24,7 +24,10 @@ from ata.plugins.policies.plan import PlanStart, plan_start, project
 STATUS_FEATURES = 17
 """Features per POI (see `status_features`)."""
 STATUS_TARGETS = ("unvisited", "classified", "reallocatable")
-"""What the head predicts per POI (probabilities of the true values)."""
+"""What the head predicts per POI (probabilities of the true values; `status_targets`)."""
+GUESSES = {"captured": (0, 0), "committed": (4, 2)}
+"""Each guess: (the feature column that shows the POI open: observed unvisited, observed
+reallocatable; the target column whose truth the guess denies: unvisited, reallocatable)."""
 
 
 def status_features(now: float, epoch: int, clock, inherent: Observation, obs: Observation,
@@ -98,10 +101,8 @@ def guesses(feats: np.ndarray, prob: np.ndarray) -> dict[str, np.ndarray]:
     unvisited whose probability of being unvisited is below one half is taken as captured; one
     shown reallocatable whose probability of being reallocatable is below one half, as
     committed."""
-    captured = (feats[..., 0] > 0.5) & (prob[..., 0] < 0.5)
-    committed = (feats[..., 4] > 0.5) & (prob[..., 2] < 0.5)
-    return {"captured": captured[..., None].astype(float),
-            "committed": committed[..., None].astype(float)}
+    return {name: ((feats[..., shown] > 0.5) & (prob[..., target] < 0.5))[..., None]
+            .astype(float) for name, (shown, target) in GUESSES.items()}
 
 
 def status_targets(truth: Observation) -> np.ndarray:
@@ -109,4 +110,6 @@ def status_targets(truth: Observation) -> np.ndarray:
     tt = truth["tasks"]
     realloc = (truth.reallocatable if truth.reallocatable is not None
                else np.ones(tt.features.shape[:2], dtype=bool))
-    return np.stack([tt.col("unvisited"), tt.col("classified"), realloc], -1).astype(np.float32)
+    cols = {"unvisited": tt.col("unvisited"), "classified": tt.col("classified"),
+            "reallocatable": realloc}
+    return np.stack([cols[c] for c in STATUS_TARGETS], -1).astype(np.float32)

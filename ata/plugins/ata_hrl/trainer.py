@@ -46,7 +46,8 @@ from ata.plugins.ata_hrl.components import (AttentionITA, AuxReconstructor, CTRP
 from ata.plugins.ata_hrl.features import GROUPS, state_features, to_tensors
 from ata.plugins.ata_hrl.network import ATAHRLNet, FatigueCVAE, NetConfig
 from ata.plugins.ata_hrl.rewards import hierarchical_rewards, rewards_to_go
-from ata.plugins.ata_hrl.status import guesses as status_guesses, status_targets
+from ata.plugins.ata_hrl.status import (GUESSES as STATUS_GUESSES, guesses as status_guesses,
+                                        status_targets)
 from ata.training import VALIDATION_SEED_OFFSET, TrainRun, resolve, trained_on
 
 PHASE_BASE = {"aux": 0, "ita": 10_000_000, "ctr": 20_000_000}
@@ -516,18 +517,18 @@ class ATAHRLTrainer:
         return self.status_report()
 
     def status_report(self) -> dict[str, float]:
-        """On held-out teacher rollouts (one batch per team setting and level): per POI-epoch
-        the latency shows open, how many are truly captured / committed and how many of those
-        the head finds, and how many it takes wrongly."""
+        """On held-out teacher rollouts (one batch per team setting and level), as shares of
+        all their POI-epochs after the first epoch: the POIs shown open that are truly captured
+        / committed (hidden), how many of those the head finds, and how many it takes wrongly."""
         x, y = self.status_data(self.s.status_batches, 1)
         with torch.no_grad():
             prob = torch.sigmoid(self.net.status(x)).numpy()
-        g = status_guesses(x.numpy(), prob)
+        x, y = x.numpy(), y.numpy()
+        g = status_guesses(x, prob)
         out = {}
-        for name, col, guess in (("captured", 0, "captured"), ("committed", 2, "committed")):
-            shown = x.numpy()[:, 0 if col == 0 else 4] > 0.5
-            hidden = shown & (y.numpy()[:, col] < 0.5)
-            took = g[guess][:, 0] > 0.5
+        for name, (shown, target) in STATUS_GUESSES.items():
+            hidden = (x[:, shown] > 0.5) & (y[:, target] < 0.5)
+            took = g[name][:, 0] > 0.5
             out[f"status_{name}_hidden"] = float(hidden.mean())
             out[f"status_{name}_found"] = float((took & hidden).mean())
             out[f"status_{name}_wrong"] = float((took & ~hidden).mean())
