@@ -260,7 +260,8 @@ def test_the_trainer_trains_what_the_slots_hold():
 def test_training_run_of_wo_c_writes_checkpoints_that_run_as_components(tmp_path):
     s = session("components.condition='always'")
     trainer = train(s, tmp_path)
-    assert trainer.counters == {"aux": 3, "status": 3, "ita": 2, "ctr": 2, "episodes": 16}
+    assert trainer.counters == {"aux": 3, "status": 3, "ita": 2, "cond": 0, "ctr": 2,
+                                "episodes": 16}
     data = torch.load(tmp_path / "checkpoint.pt", weights_only=True)
     assert data["kind"] == "ata_hrl" and data["trained"] == ["ita", "tr", "aux"]
     assert set(data) >= {"model", "optimizer", "aux_optimizer", "rng", "counters", "config",
@@ -303,9 +304,10 @@ def test_ita_from_shares_an_ita_and_init_from_trains_on(tmp_path):
 
 
 @pytest.mark.parametrize("phase, step", [("aux", "2"), ("status", "2"), ("ita", "1"),
-                                         ("ctr", "2")])
+                                         ("cond", "0"), ("ctr", "2")])
 def test_resume_after_kill_ends_with_the_same_weights(tmp_path, phase, step):
-    whole, resumed = whole_and_killed(session(), tmp_path, phase, step)
+    extra = ("ata_hrl.cond_scenarios=2", "ata_hrl.cond_steps=2") if phase == "cond" else ()
+    whole, resumed = whole_and_killed(session(*extra), tmp_path, phase, step)
     assert resumed.counters == whole.counters
     for (k, a), (_, b) in zip(whole.net.state_dict().items(), resumed.net.state_dict().items()):
         assert torch.equal(a, b), k
@@ -423,6 +425,67 @@ def test_a_run_with_no_ctr_step_ends_with_pi_tr_copied_from_its_ita(tmp_path):
         assert pairs and all(torch.equal(model[k], model["ita." + k[3:]]) for k in pairs), name
         keep = [k for k in model if k.startswith("tr.keep.linear.")]
         assert keep and all(not model[k].any() for k in keep), name
+
+
+def test_a_turned_over_condition_decision_changes_that_epoch_alone():
+    # the cond phase's counterfactual runs: pi_C's decision at the given epoch is turned over,
+    # and every epoch before it is as the policy decided (the same random streams)
+    s = session("ata_hrl.cond_scenarios=2", "mission.uncertainty='high'",
+                "mission.horizon_s=1800")
+    tr = build_trainer(s)
+    mission = tr._mission("a/high", 5)
+    ids = np.arange(3)
+    base = Simulation(mission, s.registry, ids, overrides=tr._overrides(mission, "ctr", None,
+                                                                        None)).run()
+    flip = np.array([1, 4, 9])
+    overrides = tr._overrides(mission, "ctr", None, None)
+    overrides["condition"].flip_at = flip
+    turned = Simulation(mission, s.registry, ids, overrides=overrides).run()
+    for i, f in enumerate(flip):
+        assert turned.reallocated[i, f] != base.reallocated[i, f]
+        assert np.array_equal(turned.reallocated[i, :f], base.reallocated[i, :f])
+        assert np.array_equal(turned.r_expected[i, :f], base.r_expected[i, :f])
+
+
+def test_the_cond_phase_labels_by_counterfactual_runs_and_fits_pi_c_alone():
+    # with the shipped (a) weights on two (a) scenarios at high uncertainty: each turned-over
+    # decision's gain is what a run turned over there alone gives from that epoch on, and the
+    # fit moves pi_C's weights only, towards the better choices
+    s = load_session(str(training_mission_for(["ctr", "aux"])),
+                     ["ata_hrl.cond_scenarios=2", "ata_hrl.cond_steps=5",
+                      "ata_hrl.batch_size=2"])
+    tr = build_trainer(s)
+    tr.take_ita("builtin:ata_hrl_a", whole=True)
+    mission = tr._mission("a/high", 77)
+    ids = np.array([3, 4])
+    b = tr.cond_batch(mission, ids)
+    rows, epochs = np.nonzero(b["labelled"])
+    assert rows.size > 0 and b["episodes"] == 2 + rows.size
+    assert np.array_equal(b["labelled"], b["taken"])        # cond_epochs = "events"
+    assert (b["weight"] > 0).any()
+    # one of them again, by hand: the base run and a run turned over at that epoch alone
+    j = int(np.argmax(b["weight"][rows, epochs]))
+    r, e = rows[j], epochs[j] + 1
+    runs = []
+    for flip in (None, np.array([e])):
+        overrides = tr._overrides(mission, "ctr", None, None)
+        overrides["condition"].flip_at = flip
+        rec = Simulation(mission, s.registry, ids[r:r + 1], overrides=overrides).run()
+        runs.append(rec.r_expected[0, e:].sum())
+    assert runs[1] - runs[0] == pytest.approx(b["weight"][r, e - 1] * (
+        1 if b["target"][r, e - 1] != b["taken"][r, e - 1] else -1), abs=1e-6)
+    before = {k: v.clone() for k, v in tr.net.state_dict().items()}
+    opt = torch.optim.Adam(tr.net.cond.parameters(), lr=1e-2)
+    losses = []
+    for _ in range(5):
+        loss = tr.cond_loss([b])
+        losses.append(loss.item())
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    assert losses[-1] < losses[0]
+    changed = {k for k, v in tr.net.state_dict().items() if not torch.equal(v, before[k])}
+    assert changed and all(k.startswith("cond.") for k in changed)
 
 
 def test_the_full_replan_is_taken_only_where_the_model_expects_it_to_be_worth_more():

@@ -187,6 +187,8 @@ class CTRPolicy(LearnedComponent):
         self.greedy = GreedyPolicy(dataclasses.replace(greedy or GreedyPolicy.Settings(),
                                                        replan_in_full=False), mission)
         self.greedy_attrs: np.ndarray | None = None    # greedy's own memory, as if alone
+        self.flip_at: np.ndarray | None = None   # (B,) a trainer's counterfactual rollouts:
+        # the epoch at which each scenario's pi_C decision is turned over (-1: none)
 
     def _observe(self, ctx: DecisionContext) -> None:
         """Once per epoch: encode the state and compute the condition features."""
@@ -224,6 +226,8 @@ class CTRPolicy(LearnedComponent):
                                                residual=self.settings.learned)
         decide = self.chooser(ctx, "ctr.condition")("cond", torch.stack(
             [torch.zeros_like(logit), logit], -1)).astype(bool)
+        if self.flip_at is not None:
+            decide ^= self.flip_at == ctx.epoch
         if self.recorder is not None:
             self.recorder.cond_choice.append(decide.copy())
         self.last_realloc = np.where(decide, ctx.epoch, self.last_realloc)

@@ -15,7 +15,13 @@ Phases, each with its own step counter (a killed run resumes inside any of them)
    them, and takes the advantage of each sample against the mean of its scenario's samples (a
    shared per-scenario baseline, zero-sum per scenario) on R_ITA; plus an optional pull towards
    each scenario's best sample (self-imitation) and an entropy bonus.
-3. **ctr**: pi_C and pi_TR after the ITA, frozen and decoding by its mode, in the same way on
+3. **cond** (only with ``cond_scenarios``): pi_C by counterfactual rollouts. Training scenarios
+   are run once as the policy decides (every decision by its mode) and once per reallocating
+   epoch (``cond_epochs = "events"``) or per epoch (``"all"``) with pi_C's decision there turned
+   over, on the same random streams; the difference of the two from that epoch on is what the
+   other choice was worth, and pi_C is fitted to the better choice of each, weighted by how
+   much better (one step of classification-based policy iteration).
+4. **ctr**: pi_C and pi_TR after the ITA, frozen and decoding by its mode, in the same way on
    R_C (pi_C) and R_TR (pi_TR).
 
 The rewards use the expected points of each classification (``reward = "expected"``, the
@@ -50,7 +56,7 @@ from ata.plugins.ata_hrl.status import (GUESSES as STATUS_GUESSES, guesses as st
                                         status_targets)
 from ata.training import VALIDATION_SEED_OFFSET, TrainRun, resolve, trained_on
 
-PHASE_BASE = {"aux": 0, "ita": 10_000_000, "ctr": 20_000_000}
+PHASE_BASE = {"aux": 0, "ita": 10_000_000, "ctr": 20_000_000, "cond": 30_000_000}
 """First scenario id of each phase's range (root seed ``seed``)."""
 PHASE_SPAN = 10_000_000
 LOG_FIELDS = ["phase", "step", "setting", "episodes", "episodes_per_s", "loss", "mean_score",
@@ -123,6 +129,21 @@ class ATAHRLTrainer:
         status_steps: int = param(2000, min=0, help="supervised steps of the status head")
         status_lr: float = param(3e-3, min=0.0, max=1.0, help="Adam learning rate of the "
                                  "status head")
+        cond_scenarios: int = param(0, min=0, help="pi_C by counterfactual rollouts (the "
+                                    "'cond' phase, before 'ctr'): training scenarios per team "
+                                    "setting and level of cond_levels (0: no such phase)")
+        cond_levels: list[str] = param(["high"], choices=("none", "low", "medium", "high"),
+                                       help="uncertainty levels of the cond phase's rollouts")
+        cond_epochs: str = param("events", choices=("events", "all"), help="the epochs whose "
+                                 "decision the cond phase turns over: where the policy "
+                                 "reallocates, or every epoch")
+        cond_target: str = param("points", choices=("points", "R_C"), help="what the cond "
+                                 "phase compares from the turned-over epoch on: the points "
+                                 "(as `reward` says), or the paper's R_C")
+        cond_steps: int = param(300, min=1, help="full-batch Adam steps of pi_C's weighted "
+                                "cross-entropy in the cond phase")
+        cond_lr: float = param(1e-3, min=0.0, max=1.0, help="Adam learning rate of the cond "
+                               "phase")
         eval_every: int = param(25, min=1, help="held-out validation every N steps")
         eval_scenarios: int = param(64, min=1, help="validation scenarios per team setting "
                                     "(and per uncertainty level, with uncertainty_levels)")
@@ -168,7 +189,7 @@ class ATAHRLTrainer:
                            if self.cfg.status_hidden else None)
         self.gen = torch.Generator().manual_seed(settings.seed + 1)
         self.status_gen = torch.Generator().manual_seed(settings.seed + 2)
-        self.counters = {"aux": 0, "status": 0, "ita": 0, "ctr": 0, "episodes": 0}
+        self.counters = {"aux": 0, "status": 0, "ita": 0, "cond": 0, "ctr": 0, "episodes": 0}
         self.validated_at_start: set[str] = set()   # phases whose step-0 validation is logged
         self.best_eval = -math.inf
         self.wall = 0.0
@@ -180,7 +201,8 @@ class ATAHRLTrainer:
         per_step = s.batch_size
         ranges = [(s.seed, PHASE_BASE[p], PHASE_BASE[p] + PHASE_SPAN) for p in PHASE_BASE]
         steps = {"aux": s.aux_batches + 1 + self._status_rollouts(s.status_batches + 1),
-                 "ita": s.ita_steps, "ctr": s.ctr_steps}
+                 "ita": s.ita_steps, "ctr": s.ctr_steps,
+                 "cond": -(-s.cond_scenarios * len(self._cond_pairs()) // per_step)}
         for phase, n in steps.items():
             if n * per_step > PHASE_SPAN:
                 raise MissionError(f"[{self.name}]", "batch_size", f"{phase}: {n} steps of "
@@ -200,13 +222,14 @@ class ATAHRLTrainer:
         return {"aux": s.aux_steps if self.trains_aux else 0,
                 "status": s.status_steps if self.cfg.status_hidden else 0,
                 "ita": s.ita_steps if self.trains_ita and not s.ita_from else 0,
+                "cond": s.cond_steps if self.trains_cond and s.cond_scenarios else 0,
                 "ctr": s.ctr_steps if (self.trains_cond or self.trains_tr) else 0}
 
     def total_steps(self) -> int:
         return sum(self.phases().values())
 
     def done_steps(self) -> int:
-        return sum(self.counters[k] for k in ("aux", "status", "ita", "ctr"))
+        return sum(self.counters[k] for k in ("aux", "status", "ita", "cond", "ctr"))
 
     def run(self, run: TrainRun, resume: bool = False) -> dict[str, Any]:
         """Every phase, resuming wherever the counters stand."""
@@ -222,6 +245,7 @@ class ATAHRLTrainer:
         report = self.train_aux()
         report.update(self.train_status())
         self.train_policy("ita")
+        report.update(self.train_condition())
         self.train_policy("ctr")
         self._tr_at_step_0()
         if not run.best_path.exists():
@@ -641,6 +665,119 @@ class ATAHRLTrainer:
                 self.save()
         self.save()
 
+    # -- phase 3 (optional): pi_C by counterfactual rollouts ---------------------------------------
+    def _cond_pairs(self) -> list[str]:
+        return [f"{t}/{lv}" for lv in self.s.cond_levels for t in self.s.team_settings]
+
+    def train_condition(self) -> dict[str, float]:
+        """The cond phase: label pi_C's decisions by counterfactual rollouts (`cond_batch`),
+        then fit pi_C alone to the better choices, each weighted by how much better it was.
+        The phase is done whole or not at all: a run killed inside it does it again on resume,
+        from the same weights and the same rollouts (every decision is its mode)."""
+        steps = self.phases()["cond"]
+        if steps == 0 or self.counters["cond"] >= steps:
+            return {}
+        s = self.s
+        if s.tr_from_ita and self.trains_ita and self.counters["ctr"] == 0:
+            tr_from_ita(self.net)          # pi_TR as the CTR phase's step 0 has it
+        if "cond" not in self.validated_at_start:
+            self._validate("cond", 0)     # pi_C as it stands (at first: the on_event prior)
+            self.validated_at_start.add("cond")
+            self.save()
+        t0 = time.perf_counter()
+        batches = []
+        pairs = self._cond_pairs()
+        for j, pair in enumerate(pairs):
+            mission = self._mission(pair, s.seed)
+            first = PHASE_BASE["cond"] + j * s.cond_scenarios
+            for lo in range(0, s.cond_scenarios, s.batch_size):
+                ids = first + np.arange(lo, min(lo + s.batch_size, s.cond_scenarios))
+                batches.append(self.cond_batch(mission, ids))
+                if self.run_folder is not None and self.run_folder.on_row is not None:
+                    done = j * s.cond_scenarios + lo + ids.size    # the progress bar alone
+                    self.run_folder.on_row({"phase": "cond", "step": f"rollouts of {done} of "
+                                            f"{len(pairs) * s.cond_scenarios} scenarios"})
+        opt = torch.optim.Adam(self.net.cond.parameters(), lr=s.cond_lr)
+        for _ in range(steps):
+            loss = self.cond_loss(batches)
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+        self.counters["cond"] = steps
+        self.counters["episodes"] += sum(b["episodes"] for b in batches)
+        dt = time.perf_counter() - t0
+        self.wall += dt
+        labelled = np.concatenate([b["weight"][b["labelled"]] for b in batches])   # |gain|
+        better = np.concatenate([(b["target"] != b["taken"])[b["labelled"]] for b in batches])
+        row = {"phase": "cond", "step": steps, "setting": ",".join(self._cond_pairs()),
+               "episodes": self.counters["episodes"],
+               "episodes_per_s": f"{sum(b['episodes'] for b in batches) / dt:.1f}",
+               "loss": f"{loss.item():.4f}", "wall_s": f"{self.wall:.1f}"}
+        self._validate("cond", steps, row)
+        self.save()
+        return {"cond_turned_over": int(labelled.size),
+                "cond_other_better": float(better.mean()) if better.size else 0.0,
+                "cond_mean_abs_gain": float(labelled.mean()) if labelled.size else 0.0}
+
+    def cond_batch(self, mission, ids: np.ndarray) -> dict[str, Any]:
+        """Counterfactual labels of pi_C's decisions on scenarios `ids`: the policy as it
+        decides, recording pi_C's inputs; then, on the same random streams, one run per
+        scenario and turned-over epoch. Each turned-over epoch's target is the choice that did
+        better from that epoch on, its weight by how much."""
+        s = self.s
+        rec = Recorder()
+        with torch.no_grad():
+            base = Simulation(mission, self.registry, ids, overrides=self._overrides(
+                mission, "ctr", rec, D.argmax_chooser)).run()
+        taken = np.stack(rec.cond_choice, 1)                      # (B, T-1): epochs 1..T-1
+        B, E1 = taken.shape
+        labelled = taken if s.cond_epochs == "events" else np.ones_like(taken)
+        sb, se = np.nonzero(labelled)
+        gain = np.zeros((B, E1))
+        if sb.size:
+            overrides = self._overrides(mission, "ctr", None, None)
+            overrides["condition"].flip_at = se + 1
+            with torch.no_grad():
+                flipped = Simulation(mission, self.registry, ids[sb], overrides=overrides).run()
+            go_b, go_f = self._to_go(base), self._to_go(flipped)
+            gain[sb, se] = go_f[np.arange(sb.size), se + 1] - go_b[sb, se + 1]
+        with torch.no_grad():
+            emb_i = self.net.tr.encoder(to_tensors(rec.inherent))
+            pooled = torch.stack([torch.cat([e[g] for g in GROUPS], 1).mean(1) for e in (
+                self.net.tr.embed(emb_i, to_tensors(raw), to_tensors(seen))
+                for raw, seen in rec.cond_state)], 1)              # (B, T-1, d)
+        return {"pooled": pooled, "feats": torch.as_tensor(np.stack(rec.cond_feats, 1)),
+                "prior": torch.as_tensor(np.stack(rec.cond_prior, 1)), "taken": taken,
+                "labelled": labelled, "target": taken ^ (gain > 0), "weight": np.abs(gain),
+                "episodes": B + sb.size}
+
+    def _to_go(self, record) -> np.ndarray:
+        """(E, T) what the cond phase compares, from each epoch on."""
+        expected = self.s.reward == "expected"
+        if self.s.cond_target == "R_C":
+            return rewards_to_go(record, expected=expected)["R_C"]
+        r = record.r_expected if expected else record.r_perf
+        return np.flip(np.cumsum(np.flip(r, 1), 1), 1)
+
+    def cond_loss(self, batches: list[dict[str, Any]]) -> torch.Tensor:
+        """pi_C's cross-entropy against the better choices, weighted by how much better."""
+        total, weight = torch.zeros(()), 0.0
+        for b in batches:
+            E, E1, _ = b["pooled"].shape
+            hidden = torch.zeros(E, self.cfg.d_model)
+            logits = []
+            for k in range(E1):
+                logit, hidden = self.net.cond(b["pooled"][:, k], b["feats"][:, k],
+                                              b["prior"][:, k], hidden)
+                logits.append(logit)
+            w = torch.as_tensor(b["weight"] * b["labelled"], dtype=torch.float32)
+            bce = torch.nn.functional.binary_cross_entropy_with_logits(
+                torch.stack(logits, 1), torch.as_tensor(b["target"], dtype=torch.float32),
+                reduction="none")
+            total = total + (w * bce).sum()
+            weight += float(w.sum())
+        return total / max(weight, 1e-9)
+
     def update(self, loss: torch.Tensor) -> None:
         """One Adam step of the policies on `loss`, their gradients clipped (not the
         reconstructors')."""
@@ -663,9 +800,9 @@ class ATAHRLTrainer:
         row = dict(row or {"phase": phase, "step": step, "wall_s": f"{self.wall:.1f}"})
         row["eval_score"] = f"{score:.2f}"
         row["eval_expected"] = f"{expected:.2f}"
-        # the ITA phase selects by the ITA alone; the CTR phase starts afresh from its untrained
-        # parts (the ITA's validation never reallocated)
-        if phase == "ctr" and step == 0:
+        # the ITA phase selects by the ITA alone; the first phase that reallocates (cond, else
+        # ctr) starts afresh from its untrained parts (the ITA's validation never reallocated)
+        if step == 0 and (phase == "cond" or (phase == "ctr" and not self.phases()["cond"])):
             self.best_eval = -math.inf
         if expected > self.best_eval:
             self.best_eval = expected
