@@ -486,6 +486,27 @@ def test_the_cond_phase_labels_by_counterfactual_runs_and_fits_pi_c_alone():
     assert losses[-1] < losses[0]
     changed = {k for k, v in tr.net.state_dict().items() if not torch.equal(v, before[k])}
     assert changed and all(k.startswith("cond.") for k in changed)
+    # cond_fit = "features": a linear residual on the condition features at event epochs
+    # alone; the rest of the network is made and loaded as before, and stays
+    lin = build_trainer(load_session(str(training_mission_for(["ctr", "aux"])), [
+        "ata_hrl.cond_scenarios=2", "ata_hrl.cond_fit='features'"]))
+    lin.take_ita("builtin:ata_hrl_a", whole=True)
+    before = {k: v.clone() for k, v in lin.net.state_dict().items()}
+    assert set(before) - set(tr.net.state_dict()) == {"cond.linear.weight", "cond.linear.bias"}
+    opt = torch.optim.Adam(lin.net.cond.linear.parameters(), lr=1e-2)
+    for _ in range(5):
+        loss = lin.cond_loss([b])
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    changed = {k for k, v in lin.net.state_dict().items() if not torch.equal(v, before[k])}
+    assert changed == {"cond.linear.weight", "cond.linear.bias"}
+    feats, prior = b["feats"][:, 0], torch.tensor([1.0, -1.0])
+    hidden = torch.zeros(2, lin.cfg.d_model)
+    with torch.no_grad():
+        logit, _ = lin.net.cond(b["pooled"][:, 0], feats, prior, hidden)
+        bare, _ = lin.net.cond(b["pooled"][:, 0], feats, prior, hidden, residual=False)
+    assert logit[1] == bare[1] and logit[0] != bare[0]     # a quiet epoch keeps the prior
 
 
 def test_the_full_replan_is_taken_only_where_the_model_expects_it_to_be_worth_more():

@@ -47,6 +47,8 @@ class NetConfig:
     z_dim: int = 4
     recon_hidden: int = 32
     status_hidden: int = 0      # width of the status head (0: none, as in checkpoints before it)
+    cond_linear: bool = False   # pi_C's linear residual on its condition features at event
+    #                             epochs (the cond phase's cond_fit = "features")
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -211,6 +213,13 @@ class ConditionNet(nn.Module):
         nn.init.zeros_(self.head[-1].weight)
         nn.init.zeros_(self.head[-1].bias)
         self.log_scale = nn.Parameter(torch.tensor(math.log(1.5)))
+        self.linear: nn.Linear | None = None
+        if cfg.cond_linear:
+            # at zero, and made without drawing from torch's generator: every other weight of
+            # a network with it is initialised as in one without
+            self.linear = nn.Linear(COND_FEATURES, 1, device="meta").to_empty(device="cpu")
+            nn.init.zeros_(self.linear.weight)
+            nn.init.zeros_(self.linear.bias)
 
     def forward(self, pooled: torch.Tensor, feats: torch.Tensor, prior: torch.Tensor,
                 hidden: torch.Tensor, residual: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
@@ -219,6 +228,8 @@ class ConditionNet(nn.Module):
         logit = self.log_scale.exp() * prior
         if residual:
             logit = logit + self.head(torch.cat([hidden, feats], -1))[..., 0]
+            if self.linear is not None:      # at event epochs alone (prior +1)
+                logit = logit + (prior > 0) * self.linear(feats)[..., 0]
         return logit, hidden
 
 

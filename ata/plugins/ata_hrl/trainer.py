@@ -20,7 +20,8 @@ Phases, each with its own step counter (a killed run resumes inside any of them)
    epoch (``cond_epochs = "events"``) or per epoch (``"all"``) with pi_C's decision there turned
    over, on the same random streams; the difference of the two from that epoch on is what the
    other choice was worth, and pi_C is fitted to the better choice of each, weighted by how
-   much better (one step of classification-based policy iteration).
+   much better (one step of classification-based policy iteration): its network, or with
+   ``cond_fit = "features"`` a linear residual on its condition features at event epochs.
 4. **ctr**: pi_C and pi_TR after the ITA, frozen and decoding by its mode, in the same way on
    R_C (pi_C) and R_TR (pi_TR).
 
@@ -140,6 +141,10 @@ class ATAHRLTrainer:
         cond_target: str = param("points", choices=("points", "R_C"), help="what the cond "
                                  "phase compares from the turned-over epoch on: the points "
                                  "(as `reward` says), or the paper's R_C")
+        cond_fit: str = param("network", choices=("network", "features"), help="what the cond "
+                              "phase fits: pi_C's network (its GRU and head), or a linear "
+                              "residual on its ten condition features at event epochs alone "
+                              "(the network gains that residual)")
         cond_steps: int = param(300, min=1, help="full-batch Adam steps of pi_C's weighted "
                                 "cross-entropy in the cond phase")
         cond_lr: float = param(1e-3, min=0.0, max=1.0, help="Adam learning rate of the cond "
@@ -176,7 +181,9 @@ class ATAHRLTrainer:
         self.cfg = NetConfig(d_model=settings.d_model, heads=settings.heads,
                              layers=settings.layers, hidden=settings.hidden,
                              z_dim=settings.z_dim, recon_hidden=settings.recon_hidden,
-                             status_hidden=settings.status_hidden if self.trains_aux else 0)
+                             status_hidden=settings.status_hidden if self.trains_aux else 0,
+                             cond_linear=bool(settings.cond_scenarios)
+                             and settings.cond_fit == "features")
         torch.manual_seed(settings.seed)
         self.net = ATAHRLNet(self.cfg)
         self.policy_params = [p for n, p in self.net.named_parameters()
@@ -300,18 +307,20 @@ class ATAHRLTrainer:
             raise CheckpointError(path, "trained no ITA policy (ita_from needs one that did)")
         # the status head's width may differ: a checkpoint from before the head has none, and
         # the head (trained in this run's status phase) is not taken from it
-        mine = {k: v for k, v in self.cfg.as_dict().items() if k != "status_hidden"}
-        theirs = {k: v for k, v in (data.get("config") or {}).items() if k != "status_hidden"}
+        # nor is pi_C's linear residual, which this run's cond phase fits
+        own = ("status_hidden", "cond_linear")
+        mine = {k: v for k, v in self.cfg.as_dict().items() if k not in own}
+        theirs = {k: v for k, v in (data.get("config") or {}).items() if k not in own}
         if theirs != mine:
             raise CheckpointError(path, f"architecture {data.get('config')} does not match "
                                         f"the training's {self.cfg.as_dict()}")
         prefix = "" if whole else "ita."
         part = self.net if whole else self.net.ita
         weights = {k[len(prefix):]: v for k, v in data["model"].items() if k.startswith(prefix)
-                   and not k.startswith("status.")}
+                   and not k.startswith(("status.", "cond.linear."))}
         try:
             missing, unexpected = part.load_state_dict(weights, strict=False)
-            if unexpected or any(not k.startswith("status.") for k in missing):
+            if unexpected or any(not k.startswith(("status.", "cond.linear.")) for k in missing):
                 raise RuntimeError(f"missing {missing}, unexpected {unexpected}")
         except RuntimeError as exc:
             raise CheckpointError(path, "its networks do not fit the architecture: "
@@ -697,7 +706,8 @@ class ATAHRLTrainer:
                     done = j * s.cond_scenarios + lo + ids.size    # the progress bar alone
                     self.run_folder.on_row({"phase": "cond", "step": f"rollouts of {done} of "
                                             f"{len(pairs) * s.cond_scenarios} scenarios"})
-        opt = torch.optim.Adam(self.net.cond.parameters(), lr=s.cond_lr)
+        fit = self.net.cond.linear if self.net.cond.linear is not None else self.net.cond
+        opt = torch.optim.Adam(fit.parameters(), lr=s.cond_lr)
         for _ in range(steps):
             loss = self.cond_loss(batches)
             opt.zero_grad()
