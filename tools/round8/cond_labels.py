@@ -20,7 +20,7 @@ import numpy as np
 
 from ata.core.kernel import Simulation
 from ata.experiment.runner import load_session
-from ata.plugins.ata_hrl.rewards import rewards_to_go
+from ata.plugins.ata_hrl.rewards import rewards_to_go, to_go
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -107,7 +107,7 @@ def labels(s, ids: np.ndarray, flips: int, rng: np.random.Generator, batch: int 
         rows, flip = np.array(rows), np.array(flip)
         rec, taken, feats, prior = run_flipped(s, rows, flip)
         rc = rewards_to_go(rec, expected=True)["R_C"]
-        exp_to_go = np.flip(np.cumsum(np.flip(rec.r_expected, 1), 1), 1)
+        exp_to_go = to_go(rec.r_expected)
         base_row = {}
         for j, (sid, f) in enumerate(zip(rows, flip)):
             if f < 0:

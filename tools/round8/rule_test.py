@@ -44,7 +44,7 @@ def decide(mode: str, rules: dict, cond, taken: np.ndarray) -> np.ndarray:
     out = taken.copy()
     event = cond.cond_prior > 0
     for kind, m in (("event", event), ("quiet", ~event)):
-        if mode == f"rule_{'quiet' if kind == 'event' else 'event'}":
+        if mode not in ("rule", f"rule_{kind}"):
             continue
         mu, sd, b = rules[kind]
         X = (cond.cond_feats - mu) / sd

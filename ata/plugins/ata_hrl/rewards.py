@@ -61,6 +61,11 @@ def hierarchical_rewards(record: EpisodeRecord, expected: bool = False) -> dict[
             "R_TR": total + delta - 0.2 * step_change / T}
 
 
+def to_go(x: np.ndarray) -> np.ndarray:
+    """(B, T) per-epoch terms summed from each epoch to the end."""
+    return np.flip(np.cumsum(np.flip(x, 1), 1), 1)
+
+
 def rewards_to_go(record: EpisodeRecord, expected: bool = False) -> dict[str, np.ndarray]:
     """R_C and R_TR from each epoch on, (B, T): each reward is a sum of per-epoch terms (the
     points of epoch t', its Delta r if it reallocated, its share of the penalty), and a decision
@@ -80,6 +85,5 @@ def rewards_to_go(record: EpisodeRecord, expected: bool = False) -> dict[str, np
         if realloc[:, t].any():
             change[:, t] = np.where(realloc[:, t], frobenius_change(_alloc(record, t),
                                                                    _alloc(record, t - 1)), 0.0)
-    to_go = lambda x: np.flip(np.cumsum(np.flip(x, 1), 1), 1)  # noqa: E731
     return {"R_C": to_go(r + delta - 0.4 * realloc / T),
             "R_TR": to_go(r + delta - 0.2 * change / T)}

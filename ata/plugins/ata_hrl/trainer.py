@@ -52,7 +52,7 @@ from ata.plugins.ata_hrl.components import (AttentionITA, AuxReconstructor, CTRP
                                             Recorder)
 from ata.plugins.ata_hrl.features import GROUPS, state_features, to_tensors
 from ata.plugins.ata_hrl.network import ATAHRLNet, FatigueCVAE, NetConfig
-from ata.plugins.ata_hrl.rewards import hierarchical_rewards, rewards_to_go
+from ata.plugins.ata_hrl.rewards import hierarchical_rewards, rewards_to_go, to_go
 from ata.plugins.ata_hrl.status import (GUESSES as STATUS_GUESSES, guesses as status_guesses,
                                         status_targets)
 from ata.training import VALIDATION_SEED_OFFSET, TrainRun, resolve, trained_on
@@ -719,7 +719,7 @@ class ATAHRLTrainer:
         self.wall += dt
         labelled = np.concatenate([b["weight"][b["labelled"]] for b in batches])   # |gain|
         better = np.concatenate([(b["target"] != b["taken"])[b["labelled"]] for b in batches])
-        row = {"phase": "cond", "step": steps, "setting": ",".join(self._cond_pairs()),
+        row = {"phase": "cond", "step": steps, "setting": ",".join(pairs),
                "episodes": self.counters["episodes"],
                "episodes_per_s": f"{sum(b['episodes'] for b in batches) / dt:.1f}",
                "loss": f"{loss.item():.4f}", "wall_s": f"{self.wall:.1f}"}
@@ -766,8 +766,7 @@ class ATAHRLTrainer:
         expected = self.s.reward == "expected"
         if self.s.cond_target == "R_C":
             return rewards_to_go(record, expected=expected)["R_C"]
-        r = record.r_expected if expected else record.r_perf
-        return np.flip(np.cumsum(np.flip(r, 1), 1), 1)
+        return to_go(record.r_expected if expected else record.r_perf)
 
     def cond_loss(self, batches: list[dict[str, Any]]) -> torch.Tensor:
         """pi_C's cross-entropy against the better choices, weighted by how much better."""
