@@ -90,6 +90,13 @@ class ProcessExecutor(Executor):
                 for process in list(getattr(pool, "_processes", {}).values()):
                     process.terminate()
             pool.shutdown(wait=finished, cancel_futures=True)
+            if not finished:
+                # the pool's manager thread closes its wake-up pipe as it winds down; let it
+                # finish here, or Python's exit hook may write to that pipe as it is closed
+                # (CPython 3.11: "Exception ignored ... Bad file descriptor" after a Ctrl-C)
+                manager = getattr(pool, "_executor_manager_thread", None)
+                if manager is not None:
+                    manager.join(timeout=5)
 
 
 def _die_with_parent(parent: int) -> None:
