@@ -509,6 +509,54 @@ def test_the_cond_phase_labels_by_counterfactual_runs_and_fits_pi_c_alone():
     assert logit[1] == bare[1] and logit[0] != bare[0]     # a quiet epoch keeps the prior
 
 
+def test_the_cond_phase_rule_fit_decides_event_epochs_by_a_weighted_logistic_regression(
+        tmp_path):
+    # cond_fit = "rule": the labels are collected with pi_C as the network decides (the rule
+    # is off until fitted); the fit is the optimum of the weighted, L2-penalised logistic
+    # regression on the standardised features; then event epochs follow the rule alone and
+    # quiet epochs the network; only cond.linear.* changes
+    from ata.plugins.ata_hrl.checkpoint import net_from_checkpoint
+    from ata.plugins.ata_hrl.trainer import fit_rule
+    tr = build_trainer(load_session(str(training_mission_for(["ctr", "aux"])), [
+        "ata_hrl.cond_scenarios=2", "ata_hrl.batch_size=3"]))
+    rule = build_trainer(load_session(str(training_mission_for(["ctr", "aux"])), [
+        "ata_hrl.cond_scenarios=2", "ata_hrl.batch_size=3", "ata_hrl.cond_fit='rule'"]))
+    for t in (tr, rule):
+        t.take_ita("builtin:ata_hrl_a", whole=True)
+    assert rule.phases()["cond"] == 1 and rule.net.cond.linear.on == 0
+    mission = tr._mission("a/high", 77)
+    ids = np.array([3, 4, 5])
+    b0, b = tr.cond_batch(mission, ids), rule.cond_batch(mission, ids)
+    assert np.array_equal(b0["taken"], b["taken"]) and np.array_equal(b0["weight"], b["weight"])
+    before = {k: v.clone() for k, v in rule.net.state_dict().items()}
+    fit_rule(rule.net.cond.linear, [b], 1e-2)
+    changed = {k for k, v in rule.net.state_dict().items() if not torch.equal(v, before[k])}
+    assert changed == {"cond.linear.weight", "cond.linear.bias", "cond.linear.on"}
+    # the optimum: the penalised objective's gradient, in the standardised features, is zero
+    m = b["labelled"] & (b["prior"].numpy() > 0)
+    F = b["feats"].numpy()[m].astype(np.float64)
+    t, w = b["target"][m].astype(np.float64), b["weight"][m] / b["weight"][m].sum()
+    mu, sd = F.mean(0), F.std(0) + 1e-9
+    lin = rule.net.cond.linear
+    beta_w = lin.weight.detach().double().numpy()[0] * sd
+    beta = np.r_[beta_w, lin.bias.item() + np.sum(beta_w * mu / sd)]
+    X = np.c_[(F - mu) / sd, np.ones(len(F))]
+    p = 1 / (1 + np.exp(-X @ beta))
+    assert np.abs(X.T @ ((p - t) * w) + 1e-2 * beta).max() < 1e-4
+    assert np.abs(beta).max() > 1e-3                       # it fitted something
+    feats, prior = b["feats"][:, 0], torch.tensor([1.0, -1.0, 1.0])
+    hidden = torch.zeros(3, rule.cfg.d_model)
+    with torch.no_grad():
+        logit, _ = rule.net.cond(b["pooled"][:, 0], feats, prior, hidden)
+        net, _ = tr.net.cond(b["pooled"][:, 0], feats, prior, hidden)
+        alone = lin(feats)[:, 0]
+    assert logit[0] == alone[0] and logit[2] == alone[2] and logit[1] == net[1]
+    # a checkpoint holds the rule (switched on) and loads with it
+    torch.save(rule.checkpoint(), tmp_path / "rule.pt")
+    again = net_from_checkpoint(read_checkpoint(tmp_path / "rule.pt", "ata_hrl"), "rule.pt")
+    assert again.cond.linear.on == 1 and torch.equal(again.cond.linear.weight, lin.weight)
+
+
 def test_the_full_replan_is_taken_only_where_the_model_expects_it_to_be_worth_more():
     # replan_in_full: pi_TR's per-POI reallocation or a full re-plan decoded afresh, per
     # scenario, whichever greedy's model of worth prefers (net of the re-tasking cost)

@@ -21,7 +21,9 @@ Phases, each with its own step counter (a killed run resumes inside any of them)
    over, on the same random streams; the difference of the two from that epoch on is what the
    other choice was worth, and pi_C is fitted to the better choice of each, weighted by how
    much better (one step of classification-based policy iteration): its network, or with
-   ``cond_fit = "features"`` a linear residual on its condition features at event epochs.
+   ``cond_fit = "features"`` a linear residual on its condition features at event epochs, or
+   with ``cond_fit = "rule"`` a weighted logistic regression on those features that decides
+   at event epochs in the network's place (fitted to convergence by Newton's method).
 4. **ctr**: pi_C and pi_TR after the ITA, frozen and decoding by its mode, in the same way on
    R_C (pi_C) and R_TR (pi_TR).
 
@@ -141,12 +143,17 @@ class ATAHRLTrainer:
         cond_target: str = param("points", choices=("points", "R_C"), help="what the cond "
                                  "phase compares from the turned-over epoch on: the points "
                                  "(as `reward` says), or the paper's R_C")
-        cond_fit: str = param("network", choices=("network", "features"), help="what the cond "
-                              "phase fits: pi_C's network (its GRU and head), or a linear "
-                              "residual on its ten condition features at event epochs alone "
-                              "(the network gains that residual)")
+        cond_fit: str = param("network", choices=("network", "features", "rule"),
+                              help="what the cond phase fits: pi_C's network (its GRU and "
+                              "head); a linear residual on its ten condition features at event "
+                              "epochs alone (the network gains that residual); or a logistic "
+                              "rule on those features that decides at event epochs in the "
+                              "network's place (quiet epochs stay the network's)")
         cond_steps: int = param(300, min=1, help="full-batch Adam steps of pi_C's weighted "
-                                "cross-entropy in the cond phase")
+                                "cross-entropy in the cond phase (cond_fit = 'rule': one step, "
+                                "the rule solved to convergence by Newton's method)")
+        cond_l2: float = param(1e-2, min=0.0, help="cond_fit = 'rule': the L2 penalty of the "
+                               "logistic regression, on its standardised features")
         cond_lr: float = param(1e-3, min=0.0, max=1.0, help="Adam learning rate of the cond "
                                "phase")
         eval_every: int = param(25, min=1, help="held-out validation every N steps")
@@ -183,7 +190,9 @@ class ATAHRLTrainer:
                              z_dim=settings.z_dim, recon_hidden=settings.recon_hidden,
                              status_hidden=settings.status_hidden if self.trains_aux else 0,
                              cond_linear=bool(settings.cond_scenarios)
-                             and settings.cond_fit == "features")
+                             and settings.cond_fit in ("features", "rule"),
+                             cond_rule=bool(settings.cond_scenarios)
+                             and settings.cond_fit == "rule")
         torch.manual_seed(settings.seed)
         self.net = ATAHRLNet(self.cfg)
         self.policy_params = [p for n, p in self.net.named_parameters()
@@ -229,7 +238,8 @@ class ATAHRLTrainer:
         return {"aux": s.aux_steps if self.trains_aux else 0,
                 "status": s.status_steps if self.cfg.status_hidden else 0,
                 "ita": s.ita_steps if self.trains_ita and not s.ita_from else 0,
-                "cond": s.cond_steps if self.trains_cond and s.cond_scenarios else 0,
+                "cond": (1 if s.cond_fit == "rule" else s.cond_steps)
+                if self.trains_cond and s.cond_scenarios else 0,
                 "ctr": s.ctr_steps if (self.trains_cond or self.trains_tr) else 0}
 
     def total_steps(self) -> int:
@@ -307,8 +317,9 @@ class ATAHRLTrainer:
             raise CheckpointError(path, "trained no ITA policy (ita_from needs one that did)")
         # the status head's width may differ: a checkpoint from before the head has none, and
         # the head (trained in this run's status phase) is not taken from it
-        # nor is pi_C's linear residual, which this run's cond phase fits
-        own = ("status_hidden", "cond_linear")
+        # (unless `whole` and the widths match), nor is pi_C's linear residual, which this
+        # run's cond phase fits
+        own = ("status_hidden", "cond_linear", "cond_rule")
         mine = {k: v for k, v in self.cfg.as_dict().items() if k not in own}
         theirs = {k: v for k, v in (data.get("config") or {}).items() if k not in own}
         if theirs != mine:
@@ -316,11 +327,14 @@ class ATAHRLTrainer:
                                         f"the training's {self.cfg.as_dict()}")
         prefix = "" if whole else "ita."
         part = self.net if whole else self.net.ita
+        skip = ("cond.linear.",) if whole and self.cfg.status_hidden \
+            and self.cfg.status_hidden == (data.get("config") or {}).get("status_hidden") \
+            else ("status.", "cond.linear.")
         weights = {k[len(prefix):]: v for k, v in data["model"].items() if k.startswith(prefix)
-                   and not k.startswith(("status.", "cond.linear."))}
+                   and not k.startswith(skip)}
         try:
             missing, unexpected = part.load_state_dict(weights, strict=False)
-            if unexpected or any(not k.startswith(("status.", "cond.linear.")) for k in missing):
+            if unexpected or any(not k.startswith(skip) for k in missing):
                 raise RuntimeError(f"missing {missing}, unexpected {unexpected}")
         except RuntimeError as exc:
             raise CheckpointError(path, "its networks do not fit the architecture: "
@@ -706,13 +720,18 @@ class ATAHRLTrainer:
                     done = j * s.cond_scenarios + lo + ids.size    # the progress bar alone
                     self.run_folder.on_row({"phase": "cond", "step": f"rollouts of {done} of "
                                             f"{len(pairs) * s.cond_scenarios} scenarios"})
-        fit = self.net.cond.linear if self.net.cond.linear is not None else self.net.cond
-        opt = torch.optim.Adam(fit.parameters(), lr=s.cond_lr)
-        for _ in range(steps):
-            loss = self.cond_loss(batches)
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
+        if s.cond_fit == "rule":
+            fit_rule(self.net.cond.linear, batches, s.cond_l2)
+            with torch.no_grad():
+                loss = self.cond_loss(batches)
+        else:
+            fit = self.net.cond.linear if self.net.cond.linear is not None else self.net.cond
+            opt = torch.optim.Adam(fit.parameters(), lr=s.cond_lr)
+            for _ in range(steps):
+                loss = self.cond_loss(batches)
+                opt.zero_grad()
+                loss.backward()
+                opt.step()
         self.counters["cond"] = steps
         self.counters["episodes"] += sum(b["episodes"] for b in batches)
         dt = time.perf_counter() - t0
@@ -931,3 +950,44 @@ def tr_from_ita(net) -> None:
         for layer in [*tr.state.values(), tr.keep.out[-1], tr.keep.linear]:
             torch.nn.init.zeros_(layer.weight)
             torch.nn.init.zeros_(layer.bias)
+
+
+def logistic_newton(X: np.ndarray, t: np.ndarray, w: np.ndarray, l2: float,
+                    iters: int = 100) -> np.ndarray:
+    """The weights (last: the bias) minimising the w-weighted mean cross-entropy of a logistic
+    regression of t on X, plus l2/2 times their squared norm, by Newton's method."""
+    Xb = np.c_[X, np.ones(len(X))]
+    wn = w / max(float(w.sum()), 1e-12)
+    b = np.zeros(Xb.shape[1])
+    for _ in range(iters):
+        p = 1.0 / (1.0 + np.exp(-(Xb @ b)))
+        grad = Xb.T @ ((p - t) * wn) + l2 * b
+        hess = (Xb * (wn * p * (1 - p))[:, None]).T @ Xb + l2 * np.eye(len(b))
+        step = np.linalg.solve(hess + 1e-12 * np.eye(len(b)), grad)
+        b -= step
+        if np.abs(step).max() < 1e-10:
+            break
+    return b
+
+
+def fit_rule(linear: torch.nn.Linear, batches: list[dict[str, Any]], l2: float) -> None:
+    """cond_fit = "rule": `linear` becomes the logit of "reallocating does better" at the
+    labelled event epochs, a logistic regression on the condition features (standardised
+    over those epochs, the standardisation folded into the layer), each epoch weighted by how
+    much better the better choice was."""
+    F, t, w = [], [], []
+    for b in batches:
+        m = b["labelled"] & (b["prior"].numpy() > 0)
+        F.append(b["feats"].numpy()[m])
+        t.append(b["target"][m])
+        w.append(b["weight"][m])
+    F, t, w = (np.concatenate(x).astype(np.float64) for x in (F, t, w))
+    if len(F) == 0 or w.sum() <= 0:
+        raise RuntimeError("the cond phase labelled no event epoch: nothing to fit a rule on "
+                           "(more cond_scenarios, or a level with events)")
+    mu, sd = F.mean(0), F.std(0) + 1e-9
+    beta = logistic_newton((F - mu) / sd, t, w, l2)
+    with torch.no_grad():
+        linear.weight.copy_(torch.as_tensor(beta[:-1] / sd)[None])
+        linear.bias.copy_(torch.as_tensor([beta[-1] - float(np.sum(beta[:-1] * mu / sd))]))
+        linear.on.fill_(1.0)
