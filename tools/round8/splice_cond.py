@@ -1,5 +1,6 @@
 """pi_C's linear residual of one ATA-HRL checkpoint in another: a copy of TARGET whose network
-gains SOURCE's `cond.linear` (fitted by a cond phase with cond_fit = "features"), every other
+gains SOURCE's `cond.linear` (fitted by a cond phase with cond_fit = "features", or "rule":
+then the rule, which decides at event epochs in the network's place), every other
 tensor TARGET's. A diagnostic (the (a)-fitted residual in the (b) weights); nothing shipped is
 made this way.
 
@@ -21,7 +22,8 @@ def main(source: str, target: str, out: str) -> None:
     dst = torch.load(resolve(target), weights_only=True)
     if not src["config"].get("cond_linear"):
         sys.exit(f"{source} has no linear residual in pi_C")
-    dst["config"] = {**dst["config"], "cond_linear": True}
+    dst["config"] = {**dst["config"], "cond_linear": True,
+                     "cond_rule": bool(src["config"].get("cond_rule"))}
     dst["model"] = {**dst["model"], **{k: v for k, v in src["model"].items()
                                        if k.startswith("cond.linear.")}}
     torch.save(dst, out)
