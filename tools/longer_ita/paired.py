@@ -3,7 +3,8 @@ suite's first) on the same scenarios, per (setting, level): mean score and the m
 +- 1.96 standard errors.
 
 Usage: python tools/longer_ita/paired.py EVAL_DIR [BASE_METHOD] [COLUMN]   (COLUMN: score by
-default, or e.g. expected_score)
+default, or e.g. expected_score; EVAL_DIR may be several folders joined by commas, read as
+one evaluation as `ata report` reads several)
 """
 
 from __future__ import annotations
@@ -16,7 +17,8 @@ from ata.experiment.report import paired_values, read_results
 
 
 def main(eval_dir: str, base: str | None = None, column: str = "score") -> None:
-    r = read_results(eval_dir)
+    dirs = eval_dir.split(",")
+    r = read_results(dirs if len(dirs) > 1 else dirs[0])
     base = base or r.methods[0]
     for setting in r.settings:
         for level in r.levels:
