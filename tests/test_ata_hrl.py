@@ -221,9 +221,22 @@ def test_the_shipped_ita_is_trained_and_decides_otherwise_than_its_prior():
     assert not np.array_equal(runs[0].allocations, runs[1].allocations)
 
 
+def test_the_shipped_ata_hrl_and_wo_aux_weights_carry_a_fitted_rule_and_wo_c_none():
+    # round 10 (docs/training.md, "Shipped weights"): pi_C's logistic rule, fitted in the cond
+    # phase, is on in the full method's and w/o.AUX's files; w/o.C decides at every epoch
+    from ata.training import WEIGHTS
+    for name in ("ata_hrl_a", "ata_hrl_b_ft", "ata_hrl_wo_aux_a", "ata_hrl_wo_aux_b_ft"):
+        data = read_checkpoint(WEIGHTS / f"{name}.pt", "ata_hrl")
+        assert data["config"].get("cond_rule") and "cond" in data["counters"], name
+        assert data["model"]["cond.linear.on"] == 1, name
+        assert data["model"]["cond.linear.weight"].abs().sum() > 0, name
+    for name in ("ata_hrl_wo_c_a", "ata_hrl_wo_c_b_ft"):
+        assert "cond.linear.on" not in read_checkpoint(WEIGHTS / f"{name}.pt", "ata_hrl")["model"]
+
+
 @pytest.mark.slow
 def test_shipped_ata_hrl_beats_greedy_on_held_out_scenarios_of_a_at_medium():
-    # the suite's (a) medium cell (docs/RESULTS.md: +12.4 [+0.5, +23.5]): paired, 500 scenarios
+    # the suite's (a) medium cell (docs/RESULTS.md: +18.3 [+6.8, +30.0]): paired, 500 scenarios
     from ata.experiment.runner import run_mission
     from ata.training import WEIGHTS
     common = ["mission.scenarios=500", "mission.first_scenario=1099511627776",
