@@ -223,13 +223,20 @@ def test_the_shipped_ita_is_trained_and_decides_otherwise_than_its_prior():
 
 def test_the_shipped_ata_hrl_and_wo_aux_weights_carry_a_fitted_rule_and_wo_c_none():
     # round 10 (docs/training.md, "Shipped weights"): pi_C's logistic rule, fitted in the cond
-    # phase, is on in the full method's and w/o.AUX's files; w/o.C decides at every epoch
+    # phase, is on in the full method's files, and w/o.AUX's carry the same rule: the two
+    # networks differ in the aux module's tensors alone (which w/o.AUX does not run); w/o.C
+    # decides at every epoch
     from ata.training import WEIGHTS
     for name in ("ata_hrl_a", "ata_hrl_b_ft", "ata_hrl_wo_aux_a", "ata_hrl_wo_aux_b_ft"):
         data = read_checkpoint(WEIGHTS / f"{name}.pt", "ata_hrl")
         assert data["config"].get("cond_rule") and "cond" in data["counters"], name
         assert data["model"]["cond.linear.on"] == 1, name
         assert data["model"]["cond.linear.weight"].abs().sum() > 0, name
+    for full, wo_aux in (("ata_hrl_a", "ata_hrl_wo_aux_a"), ("ata_hrl_b_ft", "ata_hrl_wo_aux_b_ft")):
+        a = read_checkpoint(WEIGHTS / f"{full}.pt", "ata_hrl")["model"]
+        b = read_checkpoint(WEIGHTS / f"{wo_aux}.pt", "ata_hrl")["model"]
+        differ = {k for k in a if k not in b or not torch.equal(a[k], b[k])}
+        assert differ and all(k.startswith(("fatigue.", "latency.", "status.")) for k in differ), differ
     for name in ("ata_hrl_wo_c_a", "ata_hrl_wo_c_b_ft"):
         assert "cond.linear.on" not in read_checkpoint(WEIGHTS / f"{name}.pt", "ata_hrl")["model"]
 
