@@ -325,11 +325,25 @@ def test_ita_from_shares_an_ita_and_init_from_trains_on(tmp_path):
         no_ita.take_ita(str(tmp_path / "no_ita" / "best.pt"))
 
 
-@pytest.mark.parametrize("phase, step", [("aux", "2"), ("status", "2"), ("ita", "1"),
-                                         ("cond", "0"), ("ctr", "2")])
-def test_resume_after_kill_ends_with_the_same_weights(tmp_path, phase, step):
-    extra = ("ata_hrl.cond_scenarios=2", "ata_hrl.cond_steps=2") if phase == "cond" else ()
-    whole, resumed = whole_and_killed(session(*extra), tmp_path, phase, step)
+# the rule's rounds need event epochs where pi_C re-plans, which the tiny team's short episodes
+# and an untrained pi_C lack: setting (a), from the shipped weights
+RULE_ROUNDS = ("ata_hrl.cond_scenarios=2", "ata_hrl.cond_fit='rule'", "ata_hrl.cond_rounds=2",
+               "ata_hrl.init_from='builtin:ata_hrl_a'", "ata_hrl.aux_steps=0",
+               "ata_hrl.ita_steps=0", "ata_hrl.ctr_steps=0")
+
+
+@pytest.mark.parametrize("phase, step, extra", [
+    ("aux", "2", ()), ("status", "2", ()), ("ita", "1", ()),
+    ("cond", "0", ("ata_hrl.cond_scenarios=2", "ata_hrl.cond_steps=2")),
+    ("cond", "2", RULE_ROUNDS),    # killed in the rule's second round, the first saved
+    ("ctr", "2", ())])
+def test_resume_after_kill_ends_with_the_same_weights(tmp_path, phase, step, extra):
+    s = session(*extra) if extra is not RULE_ROUNDS else load_session(
+        str(training_mission_for(["ctr", "aux"])),
+        [*(k for k in TINY if not k.startswith(("mission.", "ata_hrl.d_model", "ata_hrl.hidden",
+                                                "ata_hrl.recon_hidden", "ata_hrl.status_"))),
+         *extra])
+    whole, resumed = whole_and_killed(s, tmp_path, phase, step)
     assert resumed.counters == whole.counters
     for (k, a), (_, b) in zip(whole.net.state_dict().items(), resumed.net.state_dict().items()):
         assert torch.equal(a, b), k
@@ -577,6 +591,36 @@ def test_the_cond_phase_rule_fit_decides_event_epochs_by_a_weighted_logistic_reg
     torch.save(rule.checkpoint(), tmp_path / "rule.pt")
     again = net_from_checkpoint(read_checkpoint(tmp_path / "rule.pt", "ata_hrl"), "rule.pt")
     assert again.cond.linear.on == 1 and torch.equal(again.cond.linear.weight, lin.weight)
+
+
+def test_later_rounds_of_the_rule_label_every_event_epoch_as_the_rule_decides():
+    # cond_rounds: from the second round on, the labels are collected with the fitted rule
+    # deciding the event epochs, and every event epoch is labelled (re-planned or skipped),
+    # so that the rule is fitted again on the states it leads to
+    from ata.plugins.ata_hrl.trainer import fit_rule
+    rule = build_trainer(load_session(str(training_mission_for(["ctr", "aux"])), [
+        "ata_hrl.cond_scenarios=2", "ata_hrl.batch_size=4", "ata_hrl.cond_fit='rule'",
+        "ata_hrl.cond_rounds=2"]))
+    rule.take_ita("builtin:ata_hrl_a", whole=True)
+    assert rule.phases()["cond"] == 2 and not rule._rule_on()
+    mission = rule._mission("a/high", 77)
+    ids = np.array([3, 4, 5, 6])
+    first = rule.cond_batch(mission, ids)
+    assert np.array_equal(first["labelled"], first["taken"])     # where it re-planned
+    fit_rule(rule.net.cond.linear, [first], 1e-2)
+    with torch.no_grad():        # make the rule skip some events: their labels must be kept
+        rule.net.cond.linear.bias -= 1.0
+    assert rule._rule_on()
+    second = rule.cond_batch(mission, ids)
+    prior = second["prior"].numpy() > 0
+    assert np.array_equal(second["labelled"], prior)
+    # the rule decided the event epochs: its logit's sign, from the recorded features
+    with torch.no_grad():
+        logit = rule.net.cond.linear(second["feats"])[..., 0].numpy()
+    assert np.array_equal(second["taken"][prior], logit[prior] > 0)
+    assert (prior & ~second["taken"]).any()                      # skipped events, labelled
+    assert np.array_equal(second["target"], second["taken"] ^ (
+        (second["target"] != second["taken"])))                  # a choice per labelled epoch
 
 
 def test_the_full_replan_is_taken_only_where_the_model_expects_it_to_be_worth_more():

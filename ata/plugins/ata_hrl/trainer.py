@@ -154,6 +154,11 @@ class ATAHRLTrainer:
                                 "the rule solved to convergence by Newton's method)")
         cond_l2: float = param(1e-2, min=0.0, help="cond_fit = 'rule': the L2 penalty of the "
                                "logistic regression, on its standardised features")
+        cond_rounds: int = param(1, min=1, help="cond_fit = 'rule': rounds of labels and fit; "
+                                 "from the second on, the labels are collected with the rule "
+                                 "of the round before deciding, at every event epoch (what it "
+                                 "did there turned over), and the rule is fitted to them "
+                                 "alone (approximate policy iteration)")
         cond_lr: float = param(1e-3, min=0.0, max=1.0, help="Adam learning rate of the cond "
                                "phase")
         eval_every: int = param(25, min=1, help="held-out validation every N steps")
@@ -238,7 +243,7 @@ class ATAHRLTrainer:
         return {"aux": s.aux_steps if self.trains_aux else 0,
                 "status": s.status_steps if self.cfg.status_hidden else 0,
                 "ita": s.ita_steps if self.trains_ita and not s.ita_from else 0,
-                "cond": (1 if s.cond_fit == "rule" else s.cond_steps)
+                "cond": (s.cond_rounds if s.cond_fit == "rule" else s.cond_steps)
                 if self.trains_cond and s.cond_scenarios else 0,
                 "ctr": s.ctr_steps if (self.trains_cond or self.trains_tr) else 0}
 
@@ -694,9 +699,10 @@ class ATAHRLTrainer:
 
     def train_condition(self) -> dict[str, float]:
         """The cond phase: label pi_C's decisions by counterfactual rollouts (`cond_batch`),
-        then fit pi_C alone to the better choices, each weighted by how much better it was.
-        The phase is done whole or not at all: a run killed inside it does it again on resume,
-        from the same weights and the same rollouts (every decision is its mode)."""
+        then fit pi_C alone to the better choices, each weighted by how much better it was
+        (with a rule, once per round of `cond_rounds`). A fit, or a rule's round, is done whole
+        or not at all: a run killed inside it does it again on resume, from the same weights and
+        the same rollouts (every decision is its mode)."""
         steps = self.phases()["cond"]
         if steps == 0 or self.counters["cond"] >= steps:
             return {}
@@ -707,46 +713,54 @@ class ATAHRLTrainer:
             self._validate("cond", 0)     # pi_C as it stands (at first: the on_event prior)
             self.validated_at_start.add("cond")
             self.save()
-        t0 = time.perf_counter()
-        batches = []
         pairs = self._cond_pairs()
-        for j, pair in enumerate(pairs):
-            mission = self._mission(pair, s.seed)
-            first = PHASE_BASE["cond"] + j * s.cond_scenarios
-            for lo in range(0, s.cond_scenarios, s.batch_size):
-                ids = first + np.arange(lo, min(lo + s.batch_size, s.cond_scenarios))
-                batches.append(self.cond_batch(mission, ids))
-                if self.run_folder is not None and self.run_folder.on_row is not None:
-                    done = j * s.cond_scenarios + lo + ids.size    # the progress bar alone
-                    self.run_folder.on_row({"phase": "cond", "step": f"rollouts of {done} of "
-                                            f"{len(pairs) * s.cond_scenarios} scenarios"})
-        if s.cond_fit == "rule":
-            fit_rule(self.net.cond.linear, batches, s.cond_l2)
-            with torch.no_grad():
-                loss = self.cond_loss(batches)
-        else:
-            fit = self.net.cond.linear if self.net.cond.linear is not None else self.net.cond
-            opt = torch.optim.Adam(fit.parameters(), lr=s.cond_lr)
-            for _ in range(steps):
-                loss = self.cond_loss(batches)
-                opt.zero_grad()
-                loss.backward()
-                opt.step()
-        self.counters["cond"] = steps
-        self.counters["episodes"] += sum(b["episodes"] for b in batches)
-        dt = time.perf_counter() - t0
-        self.wall += dt
-        labelled = np.concatenate([b["weight"][b["labelled"]] for b in batches])   # |gain|
-        better = np.concatenate([(b["target"] != b["taken"])[b["labelled"]] for b in batches])
-        row = {"phase": "cond", "step": steps, "setting": ",".join(pairs),
-               "episodes": self.counters["episodes"],
-               "episodes_per_s": f"{sum(b['episodes'] for b in batches) / dt:.1f}",
-               "loss": f"{loss.item():.4f}", "wall_s": f"{self.wall:.1f}"}
-        self._validate("cond", steps, row)
-        self.save()
-        return {"cond_turned_over": int(labelled.size),
-                "cond_other_better": float(better.mean()) if better.size else 0.0,
-                "cond_mean_abs_gain": float(labelled.mean()) if labelled.size else 0.0}
+        report: dict[str, float] = {}
+        # a rule fits once per round (each round a step, checkpointed: a run killed in a later
+        # round resumes there, with the rule of the rounds before); the other fits take their
+        # `cond_steps` Adam steps on one collection
+        while self.counters["cond"] < steps:
+            t0 = time.perf_counter()
+            batches = []
+            for j, pair in enumerate(pairs):
+                mission = self._mission(pair, s.seed)
+                first = PHASE_BASE["cond"] + j * s.cond_scenarios
+                for lo in range(0, s.cond_scenarios, s.batch_size):
+                    ids = first + np.arange(lo, min(lo + s.batch_size, s.cond_scenarios))
+                    batches.append(self.cond_batch(mission, ids))
+                    if self.run_folder is not None and self.run_folder.on_row is not None:
+                        done = j * s.cond_scenarios + lo + ids.size    # the progress bar alone
+                        self.run_folder.on_row({"phase": "cond", "step": f"rollouts of {done} "
+                                                f"of {len(pairs) * s.cond_scenarios} scenarios"})
+            if s.cond_fit == "rule":
+                fit_rule(self.net.cond.linear, batches, s.cond_l2)
+                with torch.no_grad():
+                    loss = self.cond_loss(batches)
+                self.counters["cond"] += 1
+            else:
+                fit = self.net.cond.linear if self.net.cond.linear is not None else self.net.cond
+                opt = torch.optim.Adam(fit.parameters(), lr=s.cond_lr)
+                for _ in range(steps):
+                    loss = self.cond_loss(batches)
+                    opt.zero_grad()
+                    loss.backward()
+                    opt.step()
+                self.counters["cond"] = steps
+            self.counters["episodes"] += sum(b["episodes"] for b in batches)
+            dt = time.perf_counter() - t0
+            self.wall += dt
+            labelled = np.concatenate([b["weight"][b["labelled"]] for b in batches])  # |gain|
+            better = np.concatenate([(b["target"] != b["taken"])[b["labelled"]]
+                                     for b in batches])
+            row = {"phase": "cond", "step": self.counters["cond"], "setting": ",".join(pairs),
+                   "episodes": self.counters["episodes"],
+                   "episodes_per_s": f"{sum(b['episodes'] for b in batches) / dt:.1f}",
+                   "loss": f"{loss.item():.4f}", "wall_s": f"{self.wall:.1f}"}
+            self._validate("cond", self.counters["cond"], row)
+            self.save()
+            report = {"cond_turned_over": int(labelled.size),
+                      "cond_other_better": float(better.mean()) if better.size else 0.0,
+                      "cond_mean_abs_gain": float(labelled.mean()) if labelled.size else 0.0}
+        return report
 
     def cond_batch(self, mission, ids: np.ndarray) -> dict[str, Any]:
         """Counterfactual labels of pi_C's decisions on scenarios `ids`: the policy as it
@@ -760,7 +774,12 @@ class ATAHRLTrainer:
                 mission, "ctr", rec, D.argmax_chooser)).run()
         taken = np.stack(rec.cond_choice, 1)                      # (B, T-1): epochs 1..T-1
         B, E1 = taken.shape
-        labelled = taken if s.cond_epochs == "events" else np.ones_like(taken)
+        if s.cond_epochs == "all":
+            labelled = np.ones_like(taken)
+        elif self._rule_on():    # the rule decides event epochs: each of them, either way
+            labelled = np.stack(rec.cond_prior, 1) > 0
+        else:                    # where the policy reallocated
+            labelled = taken
         sb, se = np.nonzero(labelled)
         gain = np.zeros((B, E1))
         if sb.size:
@@ -779,6 +798,11 @@ class ATAHRLTrainer:
                 "prior": torch.as_tensor(np.stack(rec.cond_prior, 1)), "taken": taken,
                 "labelled": labelled, "target": taken ^ (gain > 0), "weight": np.abs(gain),
                 "episodes": B + sb.size}
+
+    def _rule_on(self) -> bool:
+        """Whether pi_C has a fitted rule, switched on, deciding its event epochs."""
+        cond = self.net.cond
+        return bool(cond.rule and cond.linear.on > 0)
 
     def _to_go(self, record) -> np.ndarray:
         """(E, T) what the cond phase compares, from each epoch on."""
