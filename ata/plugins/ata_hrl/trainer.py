@@ -720,17 +720,7 @@ class ATAHRLTrainer:
         # `cond_steps` Adam steps on one collection
         while self.counters["cond"] < steps:
             t0 = time.perf_counter()
-            batches = []
-            for j, pair in enumerate(pairs):
-                mission = self._mission(pair, s.seed)
-                first = PHASE_BASE["cond"] + j * s.cond_scenarios
-                for lo in range(0, s.cond_scenarios, s.batch_size):
-                    ids = first + np.arange(lo, min(lo + s.batch_size, s.cond_scenarios))
-                    batches.append(self.cond_batch(mission, ids))
-                    if self.run_folder is not None and self.run_folder.on_row is not None:
-                        done = j * s.cond_scenarios + lo + ids.size    # the progress bar alone
-                        self.run_folder.on_row({"phase": "cond", "step": f"rollouts of {done} "
-                                                f"of {len(pairs) * s.cond_scenarios} scenarios"})
+            batches = self._cond_labels(pairs)
             if s.cond_fit == "rule":
                 fit_rule(self.net.cond.linear, batches, s.cond_l2)
                 with torch.no_grad():
@@ -761,6 +751,22 @@ class ATAHRLTrainer:
                       "cond_other_better": float(better.mean()) if better.size else 0.0,
                       "cond_mean_abs_gain": float(labelled.mean()) if labelled.size else 0.0}
         return report
+
+    def _cond_labels(self, pairs: list[str]) -> list[dict[str, Any]]:
+        """`cond_batch` over the cond phase's training scenarios of every pair, in batches."""
+        s = self.s
+        batches = []
+        for j, pair in enumerate(pairs):
+            mission = self._mission(pair, s.seed)
+            first = PHASE_BASE["cond"] + j * s.cond_scenarios
+            for lo in range(0, s.cond_scenarios, s.batch_size):
+                ids = first + np.arange(lo, min(lo + s.batch_size, s.cond_scenarios))
+                batches.append(self.cond_batch(mission, ids))
+                if self.run_folder is not None and self.run_folder.on_row is not None:
+                    done = j * s.cond_scenarios + lo + ids.size    # the progress bar alone
+                    self.run_folder.on_row({"phase": "cond", "step": f"rollouts of {done} of "
+                                            f"{len(pairs) * s.cond_scenarios} scenarios"})
+        return batches
 
     def cond_batch(self, mission, ids: np.ndarray) -> dict[str, Any]:
         """Counterfactual labels of pi_C's decisions on scenarios `ids`: the policy as it
