@@ -4,11 +4,13 @@ the library, render."""
 from __future__ import annotations
 
 import functools
+import inspect
 import sys
 from pathlib import Path
 from typing import Callable, List, Optional
 
 import typer
+import typer.core
 from rich.console import Console
 from rich.markup import escape
 from rich.padding import Padding
@@ -19,7 +21,20 @@ from rich.text import Text
 
 from ata import __version__
 
-app = typer.Typer(add_completion=False, no_args_is_help=True,
+class _ReflowedHelp(typer.core.TyperGroup):
+    """Commands whose help is their docstring, wrapped to the terminal: typer's rich mode keeps
+    every line break of a docstring (wrapped at 100 columns in the source), which cut the help
+    mid-sentence at other widths; a paragraph's lines are joined here, once, at start-up."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        for command in self.commands.values():
+            if command.help:
+                command.help = "\n\n".join(" ".join(paragraph.split()) for paragraph in
+                                            inspect.cleandoc(command.help).split("\n\n"))
+
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, cls=_ReflowedHelp,
                   help="ATA: adaptive task allocation in multi-human multi-robot teams.")
 
 
@@ -56,7 +71,8 @@ err_console = _LazyConsole(stderr=True)
 SetOption = typer.Option(None, "--set", "-s", metavar="TABLE.KEY=VALUE",
                          help="Override a mission key, e.g. --set mission.seed=3 (repeatable).")
 PluginsOption = typer.Option(None, "--plugins", metavar="NAME[,NAME]",
-                             help="Optional plugins to load, comma-separated.")
+                             help="Optional plugins to load, comma-separated (a component "
+                                  "named in the mission loads its plugin without it).")
 
 
 class SpeedColumn(ProgressColumn):
@@ -335,7 +351,7 @@ def plugins(verbose: bool = typer.Option(False, "--verbose", "-v",
     loaded = {pm.get_name(p) for p in pm.get_plugins()}
     # every optional plugin, loaded or not, so that a user can discover them here
     everything = get_plugin_manager(optional=list(OPTIONAL_PLUGINS))
-    registry = collect_components(everything)
+    registry = collect_components(everything, declared=True)
     optional_of = {module: name for name, module in OPTIONAL_PLUGINS.items()}
     table = Table(title="ata plugins", box=box.SIMPLE_HEAD, title_justify="left")
     table.add_column("component", no_wrap=True)
@@ -350,8 +366,9 @@ def plugins(verbose: bool = typer.Option(False, "--verbose", "-v",
     console.print(table)
     missing = [n for n, mod in OPTIONAL_PLUGINS.items() if mod not in loaded]
     if missing:
-        console.print(f"Optional plugins (the learned methods) load with --plugins NAME or a "
-                      f"mission's [mission] plugins; not loaded now: {', '.join(missing)}.",
+        console.print(f"Optional plugins (the learned methods) load when a mission names one "
+                      f"of their components, or with --plugins NAME; not loaded now: "
+                      f"{', '.join(missing)}.",
                       highlight=False, markup=False)
     if verbose:
         # one block per component, a key per line: readable at any terminal width

@@ -287,17 +287,43 @@ def test_directory_instead_of_a_file(cli, tmp_path):
     ("mission.event_probability=1.5",
      ["[mission] key 'event_probability': 1.5 is above the maximum; allowed: 0.0 to 1.0"]),
     ("mission.scenarios=ten", ["[mission] key 'scenarios': 'ten' is not an integer"]),
-    ("components.initial=greddy", ["unknown policy 'greddy'; registered:"]),
-    ("mission.seed", ["--set: 'mission.seed' is not of the form table.key=value"]),
-    ("seed=3", ["--set: 'seed' must name a table and a key, e.g. mission.seed=3"]),
+    ("components.initial=greddy", ["[components] key 'initial': unknown policy 'greddy'; "
+                                   "registered:", "did you mean 'greedy'?"]),
+    ("mission.humanz=4", ["[mission] key 'humanz': unknown key; allowed keys:"]),
+    ("greddy.x=1", ["[greddy]: names no chosen component; tables allowed:"]),
 ])
-def test_bad_set(cli, tiny, override, fragments):
-    assert_user_error(cli("check", tiny, "--set", override), f"error: {tiny}: ", *fragments)
+def test_bad_set_is_blamed_on_the_set(cli, tiny, override, fragments):
+    """A bad value given with --set names that --set, not the mission file it overrides."""
+    result = cli("check", tiny, "--set", override)
+    assert_user_error(result, f"error: --set {override}: ", *fragments)
+    assert str(tiny) not in result.output
+
+
+@pytest.mark.parametrize("override, fragments", [
+    ("mission.seed", ["error: --set: 'mission.seed' is not of the form table.key=value"]),
+    ("seed=3", ["error: --set: 'seed' must name a table and a key, e.g. mission.seed=3"]),
+])
+def test_malformed_set(cli, tiny, override, fragments):
+    assert_user_error(cli("check", tiny, "--set", override), *fragments)
+
+
+def test_a_bad_key_in_the_file_is_still_blamed_on_the_file(cli, tmp_path):
+    path = tmp_path / "m.toml"
+    path.write_text(TINY.replace("scenarios = 3", "scenarios = 0"), encoding="utf-8")
+    # --set of another key leaves the blame with the file; of the same key, the last one wins
+    assert_user_error(cli("check", path, "--set", "mission.seed=1"),
+                      f"error: {path}: [mission] key 'scenarios': 0 is below the minimum")
+    assert_user_error(cli("check", path, "--set", "mission.scenarios=-1", "--set",
+                          "mission.scenarios=-2"),
+                      "error: --set mission.scenarios=-2: [mission] key 'scenarios': -2 is "
+                      "below the minimum")
 
 
 def test_bad_set_on_the_built_in_mission(cli):
     result = cli("run", "--set", "mission.humans=-1", "-q")
-    assert_user_error(result, "default.toml: [mission] key 'humans': -1 is below the minimum")
+    assert_user_error(result, "error: --set mission.humans=-1: [mission] key 'humans': -1 is "
+                              "below the minimum")
+    assert "default.toml" not in result.output
 
 
 @pytest.mark.parametrize("command", ["check", "run", "plugins"])

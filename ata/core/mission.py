@@ -39,9 +39,12 @@ class MissionSettings:
                        "components)")
     setting: str = param("a", choices=("a", "b", "custom"),
                          help="team setting: a (6/8/60), b (12/16/130) or custom")
-    humans: int | None = param(None, min=1, max=1000, help="number of humans (overrides setting)")
-    robots: int | None = param(None, min=1, max=1000, help="number of robots (overrides setting)")
-    tasks: int | None = param(None, min=1, max=10000, help="number of POIs (overrides setting)")
+    humans: int | None = param(None, min=1, max=1000, help="number of humans (other than the "
+                               "setting's: the team is custom)")
+    robots: int | None = param(None, min=1, max=1000, help="number of robots (other than the "
+                               "setting's: the team is custom)")
+    tasks: int | None = param(None, min=1, max=10000, help="number of POIs (other than the "
+                              "setting's: the team is custom)")
     seed: int = param(0, min=0, max=2**63 - 1, help="root seed: fixes every scenario")
     scenarios: int = param(100, min=1, max=10_000_000, help="number of scenarios to run")
     first_scenario: int = param(0, min=0, help="index of the first scenario (held-out ranges)")
@@ -56,7 +59,9 @@ class MissionSettings:
                                            help="fatigue noise variance (overrides the level)")
     event_probability: float | None = param(None, min=0.0, max=1.0,
                                             help="event probability p (overrides the level)")
-    plugins: list[str] = param([], help="optional plugins to load (e.g. ctr, aux)")
+    plugins: list[str] = param([], help="optional plugins to load (e.g. ctr, aux); not "
+                               "needed for the components named in [components], which load "
+                               "their plugin")
 
 
 @dataclass
@@ -224,18 +229,44 @@ def apply_overrides(raw: dict[str, Any], overrides: list[str]) -> dict[str, Any]
 
 
 def requested_plugins(raw: dict[str, Any]) -> list[str]:
-    """The optional plugins a raw mission asks for, before full validation."""
+    """The optional plugins a raw mission asks for by name in ``[mission] plugins``, before
+    full validation."""
     plugins = raw.get("mission", {}).get("plugins", []) if isinstance(raw.get("mission"), dict) \
         else []
     return [p for p in plugins if isinstance(p, str)] if isinstance(plugins, list) else []
 
 
-def validate(raw: dict[str, Any], registry: Register, source: str = "<built-in>") -> Mission:
-    """Check every table and key of a raw mission dict and resolve all defaults."""
+def named_components(raw: dict[str, Any]) -> list[str]:
+    """The component names a raw mission's ``[components]`` table gives, in order, before full
+    validation."""
+    table = raw.get("components")
+    out: list[str] = []
+    for value in table.values() if isinstance(table, dict) else ():
+        out += [v for v in (value if isinstance(value, list) else [value]) if isinstance(v, str)]
+    return list(dict.fromkeys(out))
+
+
+def validate(raw: dict[str, Any], registry: Register, source: str = "<built-in>",
+             overrides: list[str] = ()) -> Mission:
+    """Check every table and key of a raw mission dict and resolve all defaults.
+
+    :param overrides: the ``--set`` texts applied to `raw`: an error in a key one of them set
+        names that ``--set``, not the file.
+    """
     try:
         return _validate(raw, registry, source)
     except MissionError as exc:
-        raise exc.with_file(source) from None
+        raise exc.with_file(_blamed(exc, overrides) or source) from None
+
+
+def _blamed(exc: MissionError, overrides: list[str]) -> str | None:
+    """'--set TABLE.KEY=VALUE' when the last override of the erring key (or table) is one."""
+    place = f"{exc.where} key {exc.key!r}" if exc.key else exc.where
+    for text in reversed(overrides):
+        path, _ = parse_override(text)
+        if place in (f"[{path[0]}] key {path[1]!r}", f"[{path[0]}]"):
+            return f"--set {text}"
+    return None
 
 
 def _validate(raw: dict[str, Any], registry: Register, source: str) -> Mission:
@@ -248,6 +279,15 @@ def _validate(raw: dict[str, Any], registry: Register, source: str) -> Mission:
         if table in raw and not isinstance(raw[table], dict):
             raise MissionError(f"[{table}]", None, "must be a table")
     settings = build_settings(MissionSettings, raw.get("mission"), "[mission]")
+    base = TEAM_SETTINGS.get(settings.setting)
+    if base is not None and any(getattr(settings, k) not in (None, getattr(base, k))
+                                for k in ("humans", "robots", "tasks")):
+        # a size other than the setting's: the team is no longer the paper's (a) or (b), and
+        # the summaries, the resolved mission and the trainer's team settings must not say so
+        for k in ("humans", "robots", "tasks"):
+            if getattr(settings, k) is None:
+                setattr(settings, k, getattr(base, k))
+        settings.setting = "custom"
     if settings.setting == "custom":
         missing = [k for k in ("humans", "robots", "tasks") if getattr(settings, k) is None]
         if missing:
@@ -302,6 +342,9 @@ def _validate(raw: dict[str, Any], registry: Register, source: str) -> Mission:
             component_settings[name] = None
         else:
             component_settings[name] = build_settings(cls, table, f"[{name}]")
+    # the optional plugins loaded because a component was named: the resolved mission then
+    # names every plugin it needs (worker processes load them up front from it)
+    settings.plugins = list(dict.fromkeys([*settings.plugins, *registry.loaded]))
     return Mission(settings=settings, slots=slots, component_settings=component_settings,
                    source=source)
 

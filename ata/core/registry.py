@@ -2,7 +2,8 @@
 
 Start-up order, fixed and readable: hook specs, built-in plugins, optional plugins named by the
 user, entry points of the ``ata`` group, then ``check_pending()`` so that a misspelt hook name
-fails here rather than being ignored.
+fails here rather than being ignored. Later, a mission that names a component no loaded plugin
+registers loads the plugin declared to provide it (lazy registration, ``ata.components``).
 """
 
 from __future__ import annotations
@@ -27,10 +28,14 @@ is built by `ata train` only (``ata.training``)."""
 
 BUILTIN_GROUP = "ata.builtin"
 OPTIONAL_GROUP = "ata.optional"
+COMPONENTS_GROUP = "ata.components"
 THIRD_PARTY_GROUP = "ata"
-"""Entry-point groups: the default tier (always loaded), the optional tier (loaded only when
-named: the torch-based learned methods) and third-party packages. The core knows no plugin:
-ata's own are declared in its pyproject.toml like any other package's."""
+"""Entry-point groups: the default tier (always loaded), the optional tier (loaded when named:
+the torch-based learned methods), the components each lazily loaded plugin provides (entry point
+``KIND.NAME = "plugin.module"``: a mission naming the component loads the module, as Gymnasium's
+registry imports an environment's "module:Class" on first use), and third-party packages (always
+loaded). The core knows no plugin: ata's own are declared in its pyproject.toml like any other
+package's."""
 
 
 def _entry_points(group: str) -> dict[str, str]:
@@ -52,6 +57,35 @@ def requires(name: str) -> tuple[str, ...]:
     return tuple(getattr(module, "ATA_REQUIRES", ()))
 
 
+def _declarations() -> dict[tuple[str, str], metadata.EntryPoint]:
+    """(kind, name) -> the ``ata.components`` entry point declaring it (the first, if two
+    packages declare one name: loading both would fail as a clash anyway)."""
+    out: dict[tuple[str, str], metadata.EntryPoint] = {}
+    for ep in metadata.entry_points(group=COMPONENTS_GROUP):
+        kind, _, name = ep.name.partition(".")
+        out.setdefault((kind, name), ep)
+    return out
+
+
+def declared_components() -> dict[tuple[str, str], str]:
+    """(kind, name) -> plugin module of every component an installed package declares in the
+    ``ata.components`` group. Read at each call: it is consulted only when a name is unknown."""
+    return {key: ep.value for key, ep in _declarations().items()}
+
+
+def plugin_label(module: str) -> str:
+    """How `[mission] plugins` names a lazily loaded plugin: its optional name, else its
+    module."""
+    return next((n for n, m in OPTIONAL_PLUGINS.items() if m == module), module)
+
+
+def providers(names: Iterable[str]) -> list[str]:
+    """The plugins declared to provide components of these names, by `plugin_label`, in order."""
+    declared = declared_components()
+    out = [plugin_label(declared[k]) for name in names for k in declared if k[1] == name]
+    return list(dict.fromkeys(out))
+
+
 @dataclass(frozen=True)
 class ComponentInfo:
     """One registered component."""
@@ -66,8 +100,13 @@ class ComponentInfo:
 class Register:
     """The callable that ``ata_register_components`` receives; collects components by name."""
 
-    def __init__(self) -> None:
+    def __init__(self, pm: pluggy.PluginManager | None = None) -> None:
         self.components: dict[tuple[str, str], ComponentInfo] = {}
+        self.loaded: list[str] = []
+        """The optional plugins (by name) loaded on demand because a mission named one of
+        their components, in load order: the resolved mission records them. A plugin declared
+        only in ``ata.components`` has no name to record; it loads on demand again."""
+        self._pm = pm
         self._plugin = "?"
         self._dist = "?"
 
@@ -88,19 +127,61 @@ class Register:
         return sorted(n for k, n in self.components if k == kind)
 
     def get(self, kind: str, name: str, where: str) -> ComponentInfo:
+        """The component `name` of `kind`; an unknown one loads the plugin declared to provide
+        it (under any kind: a name in the wrong slot is then named as what it is)."""
+        if (kind, name) not in self.components:
+            self.load_declared(name)
         try:
             return self.components[(kind, name)]
         except KeyError:
-            known = ", ".join(self.names(kind)) or "(none)"
+            declared = declared_components()
+            known = sorted(set(self.names(kind)) | {n for k, n in declared if k == kind})
             hint = ""
+            close = difflib.get_close_matches(name, known, n=1)
+            if close:
+                hint = f"; did you mean {close[0]!r}?"
             if name in OPTIONAL_PLUGINS:
-                hint = f"; it comes with the optional plugin {name!r} (--plugins {name})"
+                gives = sorted(n for (k, n), m in declared.items() if m == OPTIONAL_PLUGINS[name])
+                hint = (f"; {name!r} is an optional plugin, not a component: it provides "
+                        f"{', '.join(gives) or 'no declared component'}")
             other = [k for k, n in self.components if n == name]
             if other:
                 hint = (f"; {name!r} is registered as a {other[0]}, which goes in another "
                         "[components] slot")
-            raise MissionError(where, None, f"unknown {kind} {name!r}; registered: {known} "
-                               f"(see: ata plugins){hint}") from None
+            raise MissionError(where, None, f"unknown {kind} {name!r}; registered: "
+                               f"{', '.join(known) or '(none)'} (see: ata plugins){hint}") \
+                from None
+
+    def load_declared(self, name: str | None = None) -> None:
+        """Load the not yet loaded plugins declared to provide components named `name` (every
+        declared plugin when None) into this registry's plugin manager, and register their
+        components here. A registry made without a plugin manager loads nothing."""
+        if self._pm is None:
+            return
+        wanted = [ep for (_, n), ep in _declarations().items() if name in (None, n)]
+        # the declaring package, for plugins.toml (a module loaded here has no distinfo in pm)
+        dists = {ep.value: f"{ep.dist.name} {ep.dist.version}" for ep in wanted if ep.dist}
+        before = {n for n, _ in self._pm.list_name_plugin()}
+        for module in dict.fromkeys(ep.value for ep in wanted):
+            _add_optional(self._pm, module)
+        added = [(n, p) for n, p in self._pm.list_name_plugin() if n not in before]
+        if not added:
+            return
+        _check_pending(self._pm)
+        for plugin_name, plugin in added:
+            self._collect(plugin_name, plugin, dists.get(plugin_name))
+            if plugin_label(plugin_name) in OPTIONAL_PLUGINS:
+                self.loaded.append(plugin_label(plugin_name))
+
+    def _collect(self, plugin_name: str, plugin: Any, dist: str | None = None) -> None:
+        """Ask one plugin for its components, remembering who registered them (and from which
+        distribution: `dist`, else `plugin_version`)."""
+        caller = self._pm.subset_hook_caller("ata_register_components",
+                                             remove_plugins=[p for p in self._pm.get_plugins()
+                                                             if p is not plugin])
+        self._plugin = plugin_name
+        self._dist = dist or plugin_version(self._pm, plugin)
+        caller(register=self)
 
 
 def get_plugin_manager(*, optional: Iterable[str] = (), entry_points: bool = True,
@@ -114,17 +195,12 @@ def get_plugin_manager(*, optional: Iterable[str] = (), entry_points: bool = Tru
                            "e.g. pip install -e .")
     for module in BUILTIN_PLUGINS:
         pm.register(importlib.import_module(module), name=module)
-    wanted: list[str] = []
     for name in optional:
         if name not in OPTIONAL_PLUGINS:
             known = ", ".join(sorted(OPTIONAL_PLUGINS)) or "(none yet)"
             raise MissionError("--plugins", None, f"unknown optional plugin {name!r}; "
                                f"available: {known}")
-        wanted += [*requires(name), name]
-    for name in dict.fromkeys(wanted):
-        module = OPTIONAL_PLUGINS[name]
-        if pm.get_plugin(module) is None:
-            pm.register(importlib.import_module(module), name=module)
+        _add_optional(pm, OPTIONAL_PLUGINS[name])
     if entry_points:
         pm.load_setuptools_entrypoints(THIRD_PARTY_GROUP)
     for plugin in extra:
@@ -134,6 +210,21 @@ def get_plugin_manager(*, optional: Iterable[str] = (), entry_points: bool = Tru
         pm.trace.root.setwriter(lambda text: sys.stderr.write(text))
         pm.enable_tracing()
     return pm
+
+
+def _add_optional(pm: pluggy.PluginManager, module: str) -> None:
+    """Register an optional or declared plugin module, after the optional plugins it requires
+    (its ``ATA_REQUIRES``); one already there is left alone."""
+    if pm.get_plugin(module) is not None:
+        return
+    plugin = importlib.import_module(module)
+    for name in getattr(plugin, "ATA_REQUIRES", ()):
+        if name not in OPTIONAL_PLUGINS:
+            raise MissionError("", None, f"plugin {module} requires the optional plugin {name!r}, "
+                               f"which is not installed; available: "
+                               f"{', '.join(sorted(OPTIONAL_PLUGINS)) or '(none)'}")
+        _add_optional(pm, OPTIONAL_PLUGINS[name])
+    pm.register(plugin, name=module)
 
 
 def _check_pending(pm: pluggy.PluginManager) -> None:
@@ -164,17 +255,15 @@ def plugin_version(pm: pluggy.PluginManager, plugin: Any) -> str:
         return f"{top} {__version__}" if top == "ata" else f"{top} (not installed)"
 
 
-def collect_components(pm: pluggy.PluginManager) -> Register:
-    """Ask every plugin for its components, remembering who registered what."""
-    register = Register()
+def collect_components(pm: pluggy.PluginManager, *, declared: bool = False) -> Register:
+    """Ask every plugin for its components, remembering who registered what. The registry
+    loads a declared plugin when asked for a component it lacks; `declared` loads them all now
+    (to list every component a mission can name)."""
+    register = Register(pm)
     # in start-up order (get_plugins() is a set): a clash names the later plugin, every run
     for name, plugin in pm.list_name_plugin():
-        if plugin is None:      # blocked
-            continue
-        caller = pm.subset_hook_caller("ata_register_components",
-                                       remove_plugins=[p for p in pm.get_plugins()
-                                                       if p is not plugin])
-        register._plugin = name
-        register._dist = plugin_version(pm, plugin)
-        caller(register=register)
+        if plugin is not None:      # None: blocked
+            register._collect(name, plugin)
+    if declared:
+        register.load_declared()
     return register

@@ -21,7 +21,7 @@ from ata.core import mission as mission_mod
 from ata.core.errors import MissionError
 from ata.core.kernel import Simulation
 from ata.core.mission import Mission
-from ata.core.registry import Register, collect_components, get_plugin_manager
+from ata.core.registry import Register, collect_components, get_plugin_manager, providers
 from ata.experiment import runlog
 from ata.experiment.executors import Executor, ProcessExecutor, SerialExecutor
 from ata.experiment.heldout import EVAL_FIRST_SCENARIO
@@ -33,7 +33,8 @@ BUILTIN_MISSION = Path(__file__).resolve().parent.parent / "missions" / "default
 BASELINE_MISSION = BUILTIN_MISSION.with_name("greedy.toml")
 """The greedy reference mission, the base that tests and benchmarks override."""
 TRAINING_MISSIONS = sorted(BUILTIN_MISSION.parent.glob("train_*.toml"))
-"""The built-in training missions; `ata train --plugins X` takes the one whose plugins are X."""
+"""The built-in training missions; `ata train --plugins X` takes the one whose components come
+from the optional plugins X."""
 
 
 @dataclass
@@ -71,16 +72,15 @@ def load_session(path: str | None = None, overrides: list[str] | None = None,
     """Read (or take the built-in) mission, load the plugins it needs, and validate it."""
     source = str(path) if path else str(BUILTIN_MISSION)
     raw = mission_mod.read_toml(source)
-    try:
-        raw = mission_mod.apply_overrides(raw, overrides or [])
-    except MissionError as exc:
-        raise exc.with_file(source) from None
+    raw = mission_mod.apply_overrides(raw, overrides or [])   # its errors name --set
+    # a component named in [components] loads its plugin (lazy registration); these are the
+    # optional plugins asked for by name
     optional = list(dict.fromkeys((plugins or []) + mission_mod.requested_plugins(raw)))
     if plugins:
         raw.setdefault("mission", {})["plugins"] = optional
     pm = get_plugin_manager(optional=optional, extra=extra)
     registry = collect_components(pm)
-    mission = mission_mod.validate(raw, registry, source=source)
+    mission = mission_mod.validate(raw, registry, source=source, overrides=overrides or [])
     return Session(mission=mission, registry=registry, pm=pm)
 
 
@@ -95,14 +95,15 @@ def closure(plugins: list[str]) -> frozenset[str]:
 
 
 def training_mission_for(plugins: list[str]) -> Path:
-    """The built-in training mission whose optional plugins are `plugins` (with what they bring
-    along): ctr,aux the full ATA-HRL; ctr w/o.AUX; ita the ITA alone; trp TR-POMDP; ita,trp
-    AtRL-TR."""
+    """The built-in training mission whose optional plugins (those it names and those that
+    provide its components) are `plugins` (with what they bring along): ctr,aux the full
+    ATA-HRL; ctr w/o.AUX; ita the ITA alone; trp TR-POMDP; ita,trp AtRL-TR."""
     wanted = closure(plugins)
     found = {}
     for path in TRAINING_MISSIONS:
         raw = mission_mod.read_toml(path)
-        found[closure(mission_mod.requested_plugins(raw))] = path
+        found[closure(mission_mod.requested_plugins(raw)
+                      + providers(mission_mod.named_components(raw)))] = path
     if wanted not in found:
         known = "; ".join(",".join(sorted(k)) for k in found)
         raise MissionError("--plugins", None, f"no built-in training mission for "
