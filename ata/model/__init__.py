@@ -7,6 +7,8 @@ and the policies alike (a policy never imports a team model or another policy to
   for the policies (`HumanConstants`, `RobotConstants`).
 * `ata.model.plan`: plans in expectation: where a plan starts from at a decision epoch
   (`plan_start`) and what a fixed allocation is expected to earn from there (`project`).
+* `ata.model.load`: the humans' projected load (fatigue, utilisation) while a plan is built step
+  by step (`HumanLoad`).
 * `ata.model.retask`: the re-tasking cost of MODEL.md section 3a (`RetaskCost`, who a change
   re-tasks) and what a candidate allocation is worth net of it (`worth`).
 * `ata.model.greedy_planner`: the greedy list-scheduling planner, the ``greedy`` policy's and
