@@ -16,7 +16,7 @@ from ata import hookimpl
 from ata.core.kernel import Simulation
 from ata.experiment.runner import BASELINE_MISSION, load_session
 from ata.core.state import Allocation
-from ata.plugins import tables
+from ata.model import tables
 from ata.plugins.policies import milp as M
 
 BASE = 1000.0

@@ -16,12 +16,12 @@ from ata.core.kernel import Simulation
 from ata.experiment.runner import (BASELINE_MISSION, build_trainer, load_session,
                              training_mission_for)
 from ata.core.state import Allocation
-from ata.plugins import tables
+from ata.model import tables
 from ata.plugins.ata_hrl.components import AttentionITA, AuxReconstructor, CTRPolicy
 from ata.plugins.ata_hrl.decoder import DecodeSettings, Decoder
 from ata.plugins.ata_hrl.network import ATAHRLNet, NetConfig
 from ata.plugins.ata_hrl.trainer import shared_baseline_advantage
-from ata.plugins.policies.plan import PlanStart
+from ata.model.plan import PlanStart
 from ata.training import CheckpointError, read_checkpoint
 
 TINY = ["mission.setting='custom'", "mission.humans=3", "mission.robots=4", "mission.tasks=12",
@@ -74,9 +74,9 @@ def test_decoder_masks_and_updates_the_members_after_each_choice():
     assert dec.robot_free[0].tolist() == pytest.approx([leg, 0.0])
     assert dec.robot_xy[0, 0].tolist() == [1080.0, 1000.0]
     assert dec.human_free[0].tolist() == pytest.approx([leg, leg + 25.0])
-    assert dec.booked[0].tolist() == pytest.approx([leg, 25.0])
+    assert dec.load.booked[0].tolist() == pytest.approx([leg, 25.0])
     # human 1's projected utilisation at t = 100: 25 busy s of the 100 elapsed
-    u = dec.utilisation_at(np.full((1, 1, 2), 100.0))
+    u = dec.load.utilisation_at(np.full((1, 1, 2), 100.0))
     assert u[0, 0].tolist() == pytest.approx([leg / 100.0, 0.25])
     # POI 1 next: the UGV is free first now, but from the base it needs 240/3 + 3 = 83 s > 50:
     # only the UAV reaches it in time (from POI 0: sqrt(80^2 + 240^2) / 8 + 3 after 9.67 s)
@@ -625,8 +625,8 @@ def test_later_rounds_of_the_rule_label_every_event_epoch_as_the_rule_decides():
 def test_the_full_replan_is_taken_only_where_the_model_expects_it_to_be_worth_more():
     # replan_in_full: pi_TR's per-POI reallocation or a full re-plan decoded afresh, per
     # scenario, whichever greedy's model of worth prefers (net of the re-tasking cost)
-    from ata.plugins.policies.greedy import RetaskCost
-    from ata.plugins.policies.plan import plan_start
+    from ata.model.plan import plan_start
+    from ata.model.retask import retask_cost, worth
     s = session()
     torch.manual_seed(0)
     net = ATAHRLNet(NetConfig(d_model=16, hidden=16, recon_hidden=8))
@@ -635,10 +635,10 @@ def test_the_full_replan_is_taken_only_where_the_model_expects_it_to_be_worth_mo
     class Spy(CTRPolicy):
         def _or_full_replan(self, sub, seen_state, emb, alloc):
             out, take = super()._or_full_replan(sub, seen_state, emb, alloc)
-            at = plan_start(sub, self.greedy.s.capture_s)
-            worth = [self.greedy.worth(sub, at, a, sub.reallocatable, RetaskCost.of(sub))
+            at, price = plan_start(sub), self.greedy.s.human_time_cost
+            value = [worth(sub, at, a, sub.reallocatable, retask_cost(sub), price)
                      for a in (alloc, out)]
-            seen.append((worth, take, alloc, out, sub.reallocatable))
+            seen.append((value, take, alloc, out, sub.reallocatable))
             return out, take
 
     def run(full):
@@ -711,7 +711,7 @@ def test_status_head_trains_to_find_hidden_captures(tmp_path):
 def test_status_guesses_reach_the_plan_start_and_the_policy_view():
     """A POI guessed committed is not reallocatable to the policies (`as_seen`) and not open in
     the plan start; one guessed captured is not open either; without guesses nothing changes."""
-    from ata.plugins.policies.plan import as_seen, plan_start
+    from ata.model.plan import as_seen, plan_start
     s = load_session(str(BASELINE_MISSION), TINY[:5] + ["mission.uncertainty='high'"])
     sim = Simulation(s.mission, s.registry, [0, 1])
     sim.reset()

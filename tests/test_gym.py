@@ -139,7 +139,7 @@ def test_observations_show_the_observed_state_never_the_truth(mission_file, unce
     """The fatigue the agent sees is that of the observed S: at high uncertainty it is noisy,
     off the true F_f of the working time (which is seen without noise); with no uncertainty it
     is the true one. The exposed context holds no true state."""
-    from ata.plugins import tables
+    from ata.model import tables
 
     env = ata.gym.make(mission_file, overrides=[f"mission.uncertainty='{uncertainty}'"])
     obs, _ = env.reset(seed=3)

@@ -22,7 +22,7 @@ from ata.core.mission import validate
 from ata.core.registry import Register, collect_components, get_plugin_manager
 from ata.experiment.runner import Session, run_mission
 from ata.core.state import Allocation
-from ata.plugins import tables
+from ata.model import tables
 
 SMALL = {"setting": "custom", "humans": 2, "robots": 2, "tasks": 6, "uncertainty": "none",
          "horizon_s": 120.0, "epoch_s": 60.0, "tick_s": 30.0}
@@ -388,7 +388,7 @@ def test_ata_allocation_changed_gets_the_changed_tasks():
 # --- tick --------------------------------------------------------------------------------------
 
 def test_routing_is_a_setting_of_the_robot_model():
-    from ata.plugins.routing import ROUTINGS, nearest
+    from ata.plugins.robots import ROUTINGS, nearest
     registry = registry_with(BASE)
     sim = simulation(registry)
     model = sim.pm.get_plugin("robot_model:robot")

@@ -11,7 +11,7 @@ from ata.experiment.runner import BASELINE_MISSION
 from ata.core.kernel import Simulation
 from ata.experiment.runner import load_session, run_mission
 from ata.core.state import Observation
-from ata.plugins import tables
+from ata.model import tables
 from ata.plugins.policies import milp as M
 
 MILP_SLOTS = ["components.initial='milp'", "components.condition='never'",
@@ -117,7 +117,7 @@ def test_allocations_meet_redundancy_and_capacity():
         assert np.all(booked <= settings.human_utilisation_cap * d.horizon_s + 1e-6)
         # every robot's route estimate within its cap
         leg = settings.tour_constant * np.sqrt(d.area_m ** 2 * d.rtype.size / d.kind.size)
-        per_poi = leg / d.speed + settings.capture_s
+        per_poi = leg / d.speed + d.capture_s
         count = np.bincount(robot, minlength=d.rtype.size)
         assert np.all(count * per_poi <= settings.robot_utilisation_cap * d.horizon_s + 1e-6)
 

@@ -19,7 +19,8 @@ from _support import (AIR, GROUND, HIGH, LOW, MED, UAV, Scripted, assert_trace, 
 from ata import hookimpl
 from ata.core.kernel import Simulation
 from ata.experiment.runner import BASELINE_MISSION, load_session, run_mission
-from ata.plugins.policies.greedy import GreedyPolicy, RetaskCost
+from ata.model.retask import retask_cost, worth
+from ata.plugins.policies.greedy import GreedyPolicy
 
 GOLDEN = Path(__file__).parent / "data" / "free_reallocation.json"
 
@@ -278,13 +279,13 @@ class Probe:
 
     @hookimpl
     def ata_reallocate(self, ctx, active):
-        from ata.plugins.policies.plan import plan_start
+        from ata.model.plan import plan_start
         out = self.greedy.ata_reallocate(ctx, active)
         open_ = ctx.reallocatable & active[:, None]
         start = plan_start(ctx)
-        cost = RetaskCost.of(ctx)
-        keep = self.greedy.worth(ctx, start, ctx.previous, open_, cost)
-        chosen = self.greedy.worth(ctx, start, out, open_, cost)
+        cost, price = retask_cost(ctx), self.greedy.s.human_time_cost
+        keep = worth(ctx, start, ctx.previous, open_, cost, price)
+        chosen = worth(ctx, start, out, open_, cost, price)
         moved = (out.stack() != ctx.previous.stack()).any(axis=(1, 2))
         assert (chosen[moved] > keep[moved]).all()
         self.checked += int(active.sum())

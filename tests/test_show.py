@@ -13,7 +13,7 @@ from _support import assert_user_error, flat
 from ata.experiment import runner
 from ata.core.kernel import Simulation
 from ata.experiment.units import run_batch
-from ata.plugins import tables
+from ata.model import tables
 from ata.viz.record import RIGHT, WRONG, Episode, Recorder, replay
 
 SMALL = ["mission.setting='custom'", "mission.humans=2", "mission.robots=3", "mission.tasks=10",

@@ -14,7 +14,7 @@ from ata.core.kernel import Simulation
 from ata.core.mission import TEAM_SETTINGS
 from ata.experiment.runner import load_session
 from ata.core.state import Clock
-from ata.plugins import tables
+from ata.model import tables
 from ata.plugins.robots import RobotModel
 from ata.plugins.tasks import upper_bound
 

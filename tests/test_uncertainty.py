@@ -360,7 +360,7 @@ def test_arrivals_guesses_captures_the_latency_hides_from_the_robot_rows():
     their robot, seen fresh, has moved on: most of its guesses are true captures, it finds some
     of the hidden ones, it never names a POI whose row is fresh, and plan_start takes what it
     names as captured (not open; its image books the classifier)."""
-    from ata.plugins.policies.plan import plan_start
+    from ata.model.plan import plan_start
     s = load_session(str(BASELINE_MISSION), [
         "mission.uncertainty='high'", "mission.seed=4321",
         "components.reconstructors=['identity','arrivals']"])

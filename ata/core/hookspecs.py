@@ -50,7 +50,9 @@ def ata_setup(sim: "SimState") -> None:
     :param sim: the batch; models declare the state they own with ``sim.own(name, state)``
         (others read it with ``sim.group(name)``, read-only; work passes through
         ``sim.queue(name)``) and draw their numbers from ``sim.rng`` with stream names of their
-        own.
+        own; a value others need (a team model's constants) goes out through
+        ``sim.publish(value)``, which they read with ``sim.published(Type)`` or
+        ``ctx.published(Type)``.
     """
 
 

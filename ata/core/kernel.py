@@ -118,7 +118,7 @@ class Simulation:
         return DecisionContext(epoch=sim.epoch, time=sim.now, sizes=sim.sizes, clock=sim.clock,
                                inherent=self.inherent, observed=observed, reconstructed=recon,
                                previous=sim.allocation, reallocatable=realloc, rng=sim.rng,
-                               params=sim.params)
+                               params=sim.params, channel=sim.channel)
 
     def _check(self, alloc: Any, slot: str) -> Allocation:
         sim = self.sim

@@ -8,10 +8,11 @@ them; policies read them by column name.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Iterable
+from typing import Any, Iterable, TypeVar
 
 import numpy as np
 
+from ata.core.errors import ContractError
 from ata.core.rng import BatchRNG
 
 
@@ -299,14 +300,51 @@ class ReadOnlyState:
         return f"ReadOnlyState({self._name!r}, {type(self._state).__name__})"
 
 
+T = TypeVar("T")
+
+
+class Channel:
+    """Typed values that components publish for each other, one per type: a team model's
+    constants that policies assume, say. The kernel knows none of the types; a type names who
+    publishes it in a class attribute ``published_by`` (used in the error when it is missing).
+    """
+
+    def __init__(self) -> None:
+        self._values: dict[type, Any] = {}
+
+    def publish(self, value: Any) -> None:
+        """Publish `value` under its type; a second value of one type raises ``ValueError``."""
+        kind = type(value)
+        if kind in self._values:
+            raise ValueError(f"{kind.__name__} is published already: one value per type")
+        self._values[kind] = value
+
+    def get(self, kind: type[T]) -> T:
+        """The value published as `kind` (or the one published as a subclass of it); a
+        ``ContractError`` naming the type and its publisher when there is none."""
+        if kind in self._values:
+            return self._values[kind]
+        found = [v for v in self._values.values() if isinstance(v, kind)]
+        if len(found) == 1:
+            return found[0]
+        if found:
+            raise ContractError(f"{len(found)} published values are a {kind.__name__}: "
+                                "publish one")
+        who = getattr(kind, "published_by", "the component that provides it")
+        held = ", ".join(sorted(t.__name__ for t in self._values)) or "nothing"
+        raise ContractError(f"no {kind.__name__} was published: {who} publishes it "
+                            f"(sim.publish in ata_setup); published: {held}")
+
+
 class SimState:
     """Everything one batch of scenarios holds while it runs.
 
     Each model owns the typed state of its group (``sim.own("humans", HumanState(...))``, which
     returns it for the owner to write); every other component sees it read-only through
     ``sim.group("humans")``. Work passes between models through named queues
-    (``sim.queue(name)``). ``sim.params`` carries the resolved mission; ``sim.rng`` draws
-    per-scenario numbers.
+    (``sim.queue(name)``). Typed values one component provides for others (a team model's
+    constants) go through ``sim.publish(value)`` and ``sim.published(Type)``. ``sim.params``
+    carries the resolved mission; ``sim.rng`` draws per-scenario numbers.
     """
 
     def __init__(self, *, sizes: TeamSize, clock: Clock, rng: BatchRNG,
@@ -325,6 +363,16 @@ class SimState:
         self.allocation: Allocation | None = None
         self.record = EpisodeRecord.empty(self.batch_size, clock.n_epochs, sizes.tasks)
         self.trace: list[tuple] | None = [] if trace else None
+        self.channel = Channel()
+        """What components published (`publish`); decision-makers see it on their context."""
+
+    def publish(self, value: Any) -> None:
+        """Publish a typed value for the other components and the policies (in ``ata_setup``)."""
+        self.channel.publish(value)
+
+    def published(self, kind: type[T]) -> T:
+        """The value some component published as `kind`; ``ContractError`` when none did."""
+        return self.channel.get(kind)
 
     def own(self, name: str, state: Any) -> Any:
         """Declare the state of group `name`, owned by the caller, and return it."""
@@ -370,6 +418,12 @@ class DecisionContext:
     #                                     observed (S): under latency a POI's row may be stale
     rng: BatchRNG
     params: dict[str, Any] = field(default_factory=dict)
+    channel: Channel = field(default_factory=Channel)   # what the components published
+
+    def published(self, kind: type[T]) -> T:
+        """The value a component published as `kind` (a team model's constants, say);
+        ``ContractError`` naming the type and its publisher when none did."""
+        return self.channel.get(kind)
 
     def take(self, rows: np.ndarray) -> "DecisionContext":
         """The context of a sub-batch of scenarios (a policy may decide for those alone)."""
@@ -380,4 +434,5 @@ class DecisionContext:
                                observed=sub(self.observed),
                                reconstructed={k: v[rows] for k, v in self.reconstructed.items()},
                                previous=sub(self.previous), reallocatable=self.reallocatable[rows],
-                               rng=self.rng.subset(rows), params=self.params)
+                               rng=self.rng.subset(rows), params=self.params,
+                               channel=self.channel)

@@ -7,6 +7,8 @@ A reallocation that changes a human's work (an item gained or lost, as navigator
 that had not started) re-briefs that human: busy for ``rebrief_s`` before the next item, and SA
 drops as on a switch of robot (MODEL.md section 3a); ``rebriefs`` counts them.
 
+At set-up it publishes its constants for the policies, a `HumanConstants` (``sim.publish``).
+
 Work items come through queues, into the human model's own lists of pending items:
 
 * ``humans.classify`` (from the task model): ``b, p, ready, human, robot, quality,
@@ -29,7 +31,9 @@ import numpy as np
 from ata import hookimpl
 from ata.core.settings import param
 from ata.core.state import Allocation, Observation, SimState, last_per_key, scatter
-from ata.plugins import tables
+from ata.model import tables, team
+from ata.model.retask import retasked_humans
+from ata.model.team import HumanConstants
 
 HUMAN_INHERENT = ("cognitive", "expertise", "skill")
 HUMAN_STATE = ("working_time", "fatigue", "idleness", "sa")
@@ -77,22 +81,29 @@ class HumanModel:
                                  help="theta_c, theta_s ~ U(0, theta_max)")
         t0_max_h: float = param(1.5, min=0.0, max=24.0,
                                 help="initial working hours ~ U(0, t0_max_h)")
-        fatigue_floor: float = param(0.4, min=0.0, max=1.0, help="lowest F_f")
-        window_s: float = param(300.0, min=1.0, help="utilisation window in seconds")
-        sa_drop: float = param(0.25, min=0.0, max=1.0, help="SA lost on switching robot")
-        sa_recovery_per_min: float = param(0.1, min=0.0, max=1.0, help="SA regained a minute")
-        switch_cost_s: float = param(30.0, min=0.0, help="extra busy time (1 - SA) * this")
-        rebrief_s: float = param(20.0, min=0.0, max=3600.0,
+        fatigue_floor: float = param(team.FATIGUE_FLOOR, min=0.0, max=1.0, help="lowest F_f")
+        window_s: float = param(team.WINDOW_S, min=1.0, help="utilisation window in seconds")
+        sa_drop: float = param(team.SA_DROP, min=0.0, max=1.0, help="SA lost on switching robot")
+        sa_recovery_per_min: float = param(team.SA_RECOVERY_PER_MIN, min=0.0, max=1.0,
+                                           help="SA regained a minute")
+        switch_cost_s: float = param(team.SWITCH_COST_S, min=0.0,
+                                     help="extra busy time (1 - SA) * this")
+        rebrief_s: float = param(team.REBRIEF_S, min=0.0, max=3600.0,
                                  help="re-briefing time of a human whose work a reallocation "
                                       "changes, s (0: reallocation costs humans nothing)")
 
     def __init__(self, settings: "HumanModel.Settings", mission: object):
-        self.settings = settings
+        self.settings = s = settings
+        self.constants = HumanConstants(
+            fatigue_floor=s.fatigue_floor, window_s=s.window_s, sa_drop=s.sa_drop,
+            sa_recovery_per_min=s.sa_recovery_per_min, switch_cost_s=s.switch_cost_s,
+            rebrief_s=s.rebrief_s)
 
     @hookimpl
     def ata_setup(self, sim: SimState) -> None:
         B, H, s = sim.batch_size, sim.sizes.humans, self.settings
         P, R = sim.sizes.tasks, sim.sizes.robots
+        sim.publish(self.constants)
         theta_c = sim.rng.uniform("humans.theta_c", 0, (H,)) * s.theta_max
         theta_s = sim.rng.uniform("humans.theta_s", 0, (H,)) * s.theta_max
         self.state = sim.own("humans", HumanState(
@@ -118,30 +129,14 @@ class HumanModel:
         inherent.add("humans", HUMAN_INHERENT,
                      np.stack([h.eta, h.lam, h.skill], axis=-1).astype(np.float64))
 
-    def working_hours(self, sim: SimState, now: float) -> np.ndarray:
-        """True working time T (hours) at a tick boundary, (B, H)."""
-        h = self.state
-        k = int(round(now / sim.clock.tick_s))
-        return h.t0_h + h.busy_ticks[:, :, :k].sum(axis=2) / 3600.0
-
-    def utilisation(self, sim: SimState, now: float) -> np.ndarray:
-        """Busy share of the trailing window at a tick boundary, (B, H)."""
-        h, tick = self.state, sim.clock.tick_s
-        k = int(round(now / tick))
-        lo = max(0, k - int(round(self.settings.window_s / tick)))
-        span = min(self.settings.window_s, now)
-        if span <= 0:
-            return np.zeros(h.busy_until.shape)
-        return np.minimum(1.0, h.busy_ticks[:, :, lo:k].sum(axis=2) / span)
-
     @hookimpl
     def ata_observe(self, sim: SimState, obs: Observation) -> None:
-        h, s, now = self.state, self.settings, sim.now
-        hours = self.working_hours(sim, now)
-        sa = np.minimum(1.0, h.sa + s.sa_recovery_per_min * (now - h.sa_time) / 60.0)
-        sa = np.where(h.sa_time <= now, sa, h.sa)
+        h, s, now, tick = self.state, self.settings, sim.now, sim.clock.tick_s
+        hours = tables.working_hours(h.t0_h, h.busy_ticks, now, tick)
+        sa = tables.awareness(h.sa, h.sa_time, now, s.sa_recovery_per_min)
         feats = np.stack([hours, tables.fatigue(hours, s.fatigue_floor),
-                          1.0 - self.utilisation(sim, now), sa], axis=-1)
+                          1.0 - tables.utilisation(h.busy_ticks, now, tick, s.window_s), sa],
+                         axis=-1)
         obs.add("humans", HUMAN_STATE, feats)
 
     def _take_work(self, sim: SimState) -> None:
@@ -302,21 +297,6 @@ class HumanModel:
         m["underloaded_share"] = h.cls_u_low.sum(axis=1) / n
         m["overloaded_share"] = h.cls_u_high.sum(axis=1) / n
         m["rebriefs"] = h.rebriefs.sum(axis=1)
-
-
-def retasked_humans(previous: Allocation, current: Allocation, changed: np.ndarray,
-                    n_humans: int) -> np.ndarray:
-    """(B, H) bool: humans who gain or lose a navigation or classification role on a changed
-    task (a robot moved between robots with the same navigator and classifier touches no one)."""
-    B = changed.shape[0]
-    touched = np.zeros((B, n_humans + 1), dtype=bool)     # column 0: auto / onboard
-    rows = np.arange(B)[:, None]
-    for old, new in ((previous.navigator, current.navigator),
-                     (previous.classifier, current.classifier)):
-        moved = changed & (old != new)
-        touched[np.broadcast_to(rows, moved.shape)[moved], old[moved] + 1] = True
-        touched[np.broadcast_to(rows, moved.shape)[moved], new[moved] + 1] = True
-    return touched[:, 1:]
 
 
 @hookimpl

@@ -14,20 +14,51 @@ A robot out on its route (on a leg, or waiting for its navigator to start one) w
 a reallocation changes holds for ``replan_s`` before it moves on (MODEL.md section 3a): after the
 capture in hand (``replan_hold``), or at once when the leg it waited for is withdrawn.
 ``replans`` counts them.
+
+The order in which a robot visits its POIs is its ``routing`` setting, one of `ROUTINGS`. At
+set-up it publishes its constants for the policies, a `RobotConstants` (``sim.publish``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
 from ata import hookimpl
 from ata.core.settings import param
 from ata.core.state import Allocation, Observation, SimState, scatter
-from ata.plugins import tables
-from ata.plugins.routing import ROUTINGS
+from ata.model import tables, team
+from ata.model.team import RobotConstants
+
+
+# -- routing: the order in which a robot visits its POIs. Each routing is a function
+# (sim, free) -> (B, R) int: each free robot's next POI, -1 for none.
+
+def nearest(sim: SimState, free: np.ndarray) -> np.ndarray:
+    """MODEL.md section 3: a free robot goes to its closest assigned, not yet visited POI that no
+    other robot is heading for, from where it is."""
+    r, t = sim.group("robots"), sim.group("tasks")
+    out = np.full(free.shape, -1, dtype=np.int64)
+    fb, fr = np.nonzero(free)
+    if fb.size == 0:
+        return out
+    # open: assigned to this robot, not captured, and no other robot heading there
+    open_ = ~r.visited[fb] & (sim.allocation.robot[fb] == fr[:, None])
+    tb, tr = np.nonzero(r.target >= 0)
+    heading = np.zeros(r.visited.shape, dtype=bool)
+    heading[tb, r.target[tb, tr]] = True
+    open_ &= ~heading[fb]
+    diff = t.pos[fb] - r.pos[fb, fr][:, None, :]                               # (n, P, 2)
+    dist = np.where(open_, np.hypot(diff[..., 0], diff[..., 1]), np.inf)
+    best = dist.argmin(axis=1)
+    out[fb, fr] = np.where(open_.any(axis=1), best, -1)
+    return out
+
+
+ROUTINGS: dict[str, Callable[[SimState, np.ndarray], np.ndarray]] = {"nearest": nearest}
+"""The routings the robot model's ``routing`` setting may name."""
 
 ROBOT_INHERENT = ("uav", "ugv", "speed")
 ROBOT_STATE = ("x", "y", "idleness", "working", "target")
@@ -67,10 +98,11 @@ class RobotModel:
         uav_speed: float = param(8.0, min=0.0, help="UAV autonomous speed, m/s")
         ugv_speed: float = param(3.0, min=0.0, help="UGV autonomous speed, m/s")
         uav_fraction: float = param(0.5, min=0.0, max=1.0, help="share of UAVs in the team")
-        capture_s: float = param(3.0, min=0.0, help="time to capture the image at a POI, s")
-        skill_speed: list[float] = param([2.0 / 3.0, 1.0, 1.5], min=0.0,
+        capture_s: float = param(team.CAPTURE_S, min=0.0,
+                                 help="time to capture the image at a POI, s")
+        skill_speed: list[float] = param(list(team.SKILL_SPEED), min=0.0,
                                          help="speed factor under a low/medium/high navigator")
-        replan_s: float = param(10.0, min=0.0, max=3600.0,
+        replan_s: float = param(team.REPLAN_S, min=0.0, max=3600.0,
                                 help="hold of a robot whose next target a reallocation changes "
                                      "while it is out on its route, s (0: no cost)")
         routing: str = param("nearest", choices=tuple(ROUTINGS),
@@ -84,10 +116,13 @@ class RobotModel:
                                "medium, high skill)")
         self.skill_speed = np.asarray(settings.skill_speed, dtype=float)
         self.next_targets = ROUTINGS[settings.routing]
+        self.constants = RobotConstants(capture_s=settings.capture_s, replan_s=settings.replan_s,
+                                        skill_speed=tuple(settings.skill_speed))
 
     @hookimpl
     def ata_setup(self, sim: SimState) -> None:
         B, R, s = sim.batch_size, sim.sizes.robots, self.settings
+        sim.publish(self.constants)
         n_uav = int(round(R * s.uav_fraction))
         kind = np.broadcast_to(np.where(np.arange(R) < n_uav, tables.UAV, tables.UGV),
                                (B, R)).astype(np.int64)

@@ -20,7 +20,7 @@ import numpy as np
 from ata import hookimpl
 from ata.core.settings import param
 from ata.core.state import Observation, SimState, scatter
-from ata.plugins import tables
+from ata.model import tables
 
 TASK_INHERENT = ("x", "y", "kind", "difficulty", "points")
 TASK_STATE = ("unvisited", "captured", "classified", "kind", "difficulty")

@@ -15,7 +15,7 @@ import numpy as np
 
 from ata.core.errors import MissionError
 from ata.experiment.report import save_figure
-from ata.plugins import tables
+from ata.model import tables
 from ata.viz.record import OUTCOMES, RIGHT, UNCLASSIFIED, UNVISITED, WRONG, Episode
 
 BLUE, VERMILLION, GREEN, SKY = "#0072B2", "#D55E00", "#009E73", "#56B4E9"

@@ -17,8 +17,10 @@ component's (``trylast``):
 `Episode.build` turns these into legs, waits and work items with exact times. A robot's leg is
 rebuilt from its capture (or failure) time, its origin (the base or its previous capture) and its
 speed, as the robot model computed it: start = end - distance / speed - capture time. The
-recorder reads the built-in team models (`poi`, `human`, `robot`) and writes nothing to the
-simulation, so a recorded scenario's results are those of the same scenario run without it.
+recorder reads the groups the team models declare (``tasks``, ``humans``, ``robots``, with the
+fields of the built-in models' states) and the constants they publish (`HumanConstants`,
+`RobotConstants`), through the domain library's formulas; it writes nothing to the simulation,
+so a recorded scenario's results are those of the same scenario run without it.
 """
 
 from __future__ import annotations
@@ -29,28 +31,16 @@ from typing import Any
 import numpy as np
 
 from ata import hookimpl
-from ata.core.errors import MissionError
 from ata.core.kernel import Simulation
 from ata.core.mission import Mission
 from ata.core.registry import Register
 from ata.core.state import Allocation, Observation, SimState
-from ata.plugins import tables
-from ata.plugins.humans import HumanModel
-from ata.plugins.robots import RobotModel
+from ata.model import tables
+from ata.model.team import HumanConstants, RobotConstants
 
 RIGHT, WRONG, UNCLASSIFIED, UNVISITED = 0, 1, 2, 3
 OUTCOMES = ("right", "wrong", "captured, not classified", "not visited")
 """A POI's outcome by the horizon, by code."""
-
-
-def _model(simulation: Simulation, cls: type, slot: str) -> Any:
-    """The component of the simulation that is an instance of `cls` (a built-in team model)."""
-    for plugin in simulation.pm.get_plugins():
-        if isinstance(plugin, cls):
-            return plugin
-    name = getattr(simulation.mission.slots, slot)
-    raise MissionError("[components]", slot, f"the recorder reads the built-in team models; "
-                       f"{name!r} is not {cls.__name__}", file=simulation.mission.source)
 
 
 class Recorder:
@@ -61,8 +51,8 @@ class Recorder:
     """
 
     def __init__(self, simulation: Simulation):
-        self.humans: HumanModel = _model(simulation, HumanModel, "human_model")
-        self.robots: RobotModel = _model(simulation, RobotModel, "robot_model")
+        self.humans: HumanConstants | None = None    # what the team models published
+        self.robots: RobotConstants | None = None
         self.times: list[float] = []            # tick boundaries, s
         self.hours: list[np.ndarray] = []       # (B, H) working time at each, h
         self.util: list[np.ndarray] = []        # (B, H) utilisation over the trailing window
@@ -87,15 +77,16 @@ class Recorder:
 
     def _sample(self, sim: SimState, time: float) -> None:
         """The humans' true working time, utilisation and SA at a tick boundary."""
-        h, s = sim.group("humans"), self.humans.settings
-        sa = np.minimum(1.0, h.sa + s.sa_recovery_per_min * (time - h.sa_time) / 60.0)
+        h, s, tick = sim.group("humans"), self.humans, sim.clock.tick_s
         self.times.append(time)
-        self.hours.append(self.humans.working_hours(sim, time))
-        self.util.append(self.humans.utilisation(sim, time))
-        self.sa.append(np.where(h.sa_time <= time, sa, h.sa))
+        self.hours.append(tables.working_hours(h.t0_h, h.busy_ticks, time, tick))
+        self.util.append(tables.utilisation(h.busy_ticks, time, tick, s.window_s))
+        self.sa.append(tables.awareness(h.sa, h.sa_time, time, s.sa_recovery_per_min))
 
     @hookimpl(trylast=True)
     def ata_setup(self, sim: SimState) -> None:
+        self.humans = sim.published(HumanConstants)
+        self.robots = sim.published(RobotConstants)
         self._ready = np.full((sim.batch_size, sim.sizes.robots), np.inf)
         self._sample(sim, 0.0)
 
@@ -177,7 +168,7 @@ class Work:
 class Episode:
     """One scenario, replayed: what each member did and when, and how it scored. Times in s,
     positions in m; kinds, difficulties, qualities, robot types and skills coded as in
-    `ata.plugins.tables`."""
+    `ata.model.tables`."""
 
     mission: str
     seed: int
@@ -247,11 +238,11 @@ class Episode:
         # a captured POI is never reallocated: its classifier is the one in the last epoch
         classifier = rec.allocations[b, -1, :, 2].astype(np.int64)
         base = (float(t["area_m"]) / 2.0, float(t["area_m"]) / 2.0)   # robots start there
-        legs = _legs(events, t, r, h, b, base, recorder.robots.settings)
+        legs = _legs(events, t, r, h, b, base, recorder.robots)
         waits = _waits(recorder, b, legs, r["fail_time"][b], horizon)
         work = _work(events, t, b, legs)
         hours = np.stack(recorder.hours)[:, b].T
-        floor = recorder.humans.settings.fatigue_floor
+        floor = recorder.humans.fatigue_floor
         seen = np.stack(recorder.seen)[:, b]
         allocs = rec.allocations[b]
         changes = [(int(k), int((allocs[k] != allocs[k - 1]).any(axis=1).sum()))
@@ -276,7 +267,7 @@ class Episode:
             utilisation=np.stack(recorder.util)[:, b].T, sa=np.stack(recorder.sa)[:, b].T,
             epoch_times=np.arange(clock.n_epochs) * clock.epoch_s,
             fatigue_seen=seen[:, :, recorder.seen_names.index("fatigue")].T,
-            window_s=recorder.humans.settings.window_s, reallocations=changes)
+            window_s=recorder.humans.window_s, reallocations=changes)
 
 
 def _scenario_of(event: tuple) -> int | None:
@@ -290,7 +281,7 @@ def _scenario_of(event: tuple) -> int | None:
 
 
 def _legs(events: list[tuple], t: dict, r: dict, h: dict, b: int, base: tuple[float, float],
-          settings: RobotModel.Settings) -> list[Leg]:
+          settings: RobotConstants) -> list[Leg]:
     """Every robot's legs, in order, from its captures and its failure."""
     skill_speed = np.asarray(settings.skill_speed, dtype=float)
     nav_end = {(e[5], e[6]): e[4] for e in events if e[0] == "start" and e[1] == "nav"}

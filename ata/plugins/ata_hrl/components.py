@@ -11,7 +11,6 @@ docs).
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -28,9 +27,11 @@ from ata.plugins.ata_hrl.features import (GROUPS, inherent_features, seen_state,
                                           to_tensors)
 from ata.plugins.ata_hrl.network import ATAHRLNet, COND_FEATURES
 from ata.plugins.ata_hrl.status import StatusTracker, guesses as status_guesses
-from ata.plugins import tables
-from ata.plugins.policies.greedy import GreedyPolicy, RetaskCost
-from ata.plugins.policies.plan import PlanStart, as_seen, plan_start, project
+from ata.model import tables
+from ata.model.greedy_planner import GreedyPlanner, GreedySettings
+from ata.model.plan import PlanStart, as_seen, plan_start, project, task_attributes
+from ata.model.retask import retask_cost, worth
+from ata.model.team import HumanConstants
 
 
 # -- what a training rollout records --------------------------------------------------------------
@@ -49,15 +50,14 @@ class Recorder:
 
 
 def decode_settings(ctx: DecisionContext) -> DecodeSettings:
-    """The decoder's model constants: the greedy component's where the mission has one, and
-    the mission's re-tasking cost."""
-    cost = RetaskCost.of(ctx)
-    mission = ctx.params.get("mission")
-    greedy = (mission.component_settings.get("greedy") if mission is not None else None) \
-        or GreedyPolicy.Settings()
-    return DecodeSettings(capture_s=greedy.capture_s, fatigue_floor=greedy.fatigue_floor,
+    """The decoder's constants: the utilisation window and the re-brief the team models
+    published, and the greedy planner's default prices (those of the priors the weights were
+    trained with)."""
+    greedy = GreedySettings()
+    return DecodeSettings(window_s=ctx.published(HumanConstants).window_s,
                           human_time_cost=greedy.human_time_cost,
-                          rate_offset_s=greedy.rate_offset_s, rebrief_s=cost.rebrief_s)
+                          rate_offset_s=greedy.rate_offset_s,
+                          rebrief_s=retask_cost(ctx).rebrief_s)
 
 
 def decoder_start(ctx: DecisionContext, seen: dict[str, np.ndarray] | None
@@ -69,8 +69,7 @@ def decoder_start(ctx: DecisionContext, seen: dict[str, np.ndarray] | None
     if seen is None:
         # the initial allocation: the fatigue the model gives for the working hours S shows at
         # t = 0 (as greedy's); nothing has been done yet, so no utilisation
-        settings = decode_settings(ctx)
-        return (start, tables.fatigue(start.hours, settings.fatigue_floor),
+        return (start, tables.fatigue(start.hours, start.fatigue_floor),
                 np.zeros_like(start.hours))
     if "aux_robots" in ctx.reconstructed:
         rob = seen["robots"]
@@ -181,11 +180,8 @@ class CTRPolicy(LearnedComponent):
         self.last_realloc: np.ndarray | None = None
         self.planned_attrs: np.ndarray | None = None    # (B, P, 2) attributes planned with
         # greedy's reallocation, keeping or repairing (not re-planning in full, which would
-        # replace the ITA's allocation by greedy's), whose choice is pi_TR's prior (greedy's
-        # settings where the mission has a greedy table)
-        greedy = mission.component_settings.get("greedy") if mission is not None else None
-        self.greedy = GreedyPolicy(dataclasses.replace(greedy or GreedyPolicy.Settings(),
-                                                       replan_in_full=False), mission)
+        # replace the ITA's allocation by greedy's), whose choice is pi_TR's prior
+        self.greedy = GreedyPlanner(GreedySettings(replan_in_full=False))
         self.greedy_attrs: np.ndarray | None = None    # greedy's own memory, as if alone
         self.flip_at: np.ndarray | None = None   # (B,) a trainer's counterfactual rollouts:
         # the epoch at which each scenario's pi_C decision is turned over (-1: none)
@@ -246,9 +242,8 @@ class CTRPolicy(LearnedComponent):
         start, fatigue, util = decoder_start(sub, seen)
         settings = decode_settings(ctx)
         dec = Decoder(start, sub.reallocatable, fatigue, util, settings, previous=sub.previous)
-        kept_proj = project(start, sub.previous, capture_s=settings.capture_s,
-                            fatigue_floor=settings.fatigue_floor)
-        attrs = _attrs(sub)
+        kept_proj = project(start, sub.previous)
+        attrs = task_attributes(sub)
         changed = (attrs != self.planned_attrs[rows]).any(-1)
         emb = {g: v[rows] for g, v in self.emb.items()}
         trace = None
@@ -260,7 +255,7 @@ class CTRPolicy(LearnedComponent):
         choose = self.chooser(sub, "ctr")      # the reallocating scenarios' own streams
         # the heuristic's choice, the prior: greedy weighs keeping, repairing and re-planning
         self.greedy.planned_attrs = self.greedy_attrs[rows]
-        heuristic = self.greedy.ata_reallocate(sub, np.ones(rows.size, bool))
+        heuristic = self.greedy.reallocate(sub, np.ones(rows.size, bool))
         self.greedy_attrs[rows] = self.greedy.planned_attrs
         keep_in = dec.keep_inputs(kept_proj.expected, kept_proj.finish, changed, heuristic)
         first = D.decide_keep(keep_in, self.net.tr, emb, choose,
@@ -295,18 +290,11 @@ class CTRPolicy(LearnedComponent):
         and is not recorded: to pi_TR's training it is part of the environment. Returns the
         allocation and which scenarios took the re-plan."""
         full = D.decode(dec, self.net.tr, emb, D.argmax_chooser, residual=self.settings.learned)
-        cost = RetaskCost.of(sub)
-        at = plan_start(sub, self.greedy.s.capture_s)
-        worth_alloc = self.greedy.worth(sub, at, alloc, sub.reallocatable, cost)
-        worth_full = self.greedy.worth(sub, at, full, sub.reallocatable, cost)
+        cost, at, price = retask_cost(sub), plan_start(sub), self.greedy.s.human_time_cost
+        worth_alloc = worth(sub, at, alloc, sub.reallocatable, cost, price)
+        worth_full = worth(sub, at, full, sub.reallocatable, cost, price)
         take = worth_full > worth_alloc + 1e-9
         return full.where(take[:, None] & sub.reallocatable, alloc), take
-
-
-def _attrs(ctx: DecisionContext) -> np.ndarray:
-    """(B, P, 2) the POIs' kind and difficulty as currently seen."""
-    t = ctx.observed["tasks"]
-    return np.stack([t.col("kind"), t.col("difficulty")], -1)
 
 
 def condition_features(policy: CTRPolicy, ctx: DecisionContext

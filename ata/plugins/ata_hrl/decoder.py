@@ -12,9 +12,10 @@ Everything the decoder computes comes from what a policy may read: the inherent 
 the (reconstructed) observed state S and the model's tables, in expectation. For each candidate
 it gives the network features (times, image quality, success probability with fatigue and
 workload projected to the moment the work would start, expected points) and the score of the
-greedy heuristic as a prior (``ata.plugins.policies.greedy``'s rate of points per robot second,
-its net value of a classifier), so that the network with its learned part switched off decodes
-like greedy.
+greedy heuristic as a prior (`ata.model.greedy_planner`'s rate of points per robot second, its
+net value of a classifier), so that the network with its learned part switched off decodes like
+greedy. The humans' projected load is the domain library's (`ata.model.load.HumanLoad`); the
+capture time and the fatigue floor are the plan start's (what the team models published).
 """
 
 from __future__ import annotations
@@ -24,11 +25,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ata.core.state import Allocation
-from ata.plugins import tables
-from ata.plugins.policies.plan import PlanStart
-
-BIN_S = 10.0
-"""Width of the time bins of the cumulative busy-time grid (the utilisation projection)."""
+from ata.model import tables
+from ata.model.greedy_planner import HUMAN_TIME_COST, RATE_OFFSET_S
+from ata.model.load import HumanLoad
+from ata.model.plan import PlanStart
+from ata.model.team import WINDOW_S
 
 POI_FEATURES = 18
 KEEP_FEATURES = 13
@@ -51,13 +52,12 @@ def _quiet(method):
 
 @dataclass(frozen=True)
 class DecodeSettings:
-    """The model constants the decoder assumes (the greedy heuristic's, for the priors)."""
+    """The constants the decoder assumes beside the plan start's: the human model's utilisation
+    window and re-brief, and the greedy heuristic's prices (for the priors)."""
 
-    capture_s: float = 3.0
-    fatigue_floor: float = 0.4
-    window_s: float = 300.0
-    human_time_cost: float = 0.04
-    rate_offset_s: float = 300.0
+    window_s: float = WINDOW_S
+    human_time_cost: float = HUMAN_TIME_COST
+    rate_offset_s: float = RATE_OFFSET_S
     rebrief_s: float = 0.0
 
 
@@ -75,7 +75,7 @@ class StepInputs:
 class Decoder:
     """The decoding state of E episodes (one allocation each) from a PlanStart.
 
-    :param start: where the plan starts (``ata.plugins.policies.plan.plan_start``).
+    :param start: where the plan starts (`ata.model.plan.plan_start`).
     :param todo: (E, P) the POIs to decode; the others keep ``previous`` (or robot 0, auto,
         onboard when there is none).
     :param fatigue_now: (E, H) the fatigue estimate now (raw or reconstructed S); the plan
@@ -107,26 +107,17 @@ class Decoder:
         self.robot_xy = start.robot_xy.copy()
         self.robot_done = ~np.isfinite(self.robot_free)
         self.n_assigned = np.zeros((E, R))
-        self.human_free = start.human_free.copy()
-        self.booked = np.maximum(start.human_free - start.now, 0.0)
-        self.fatigue_now = np.clip(fatigue_now, s.fatigue_floor, 1.0)
-        self.util_now = np.clip(util_now, 0.0, 1.0)
-        # cumulative busy seconds of each human at the grid's edges: the utilisation now is
-        # spread evenly over the last window, then the plan's bookings add to it
-        self.edges = np.arange(0.0, start.horizon + s.window_s + BIN_S, BIN_S)
-        lo = start.now - s.window_s
-        ramp = np.clip(self.edges - lo, 0.0, s.window_s)
-        self.cum = self.util_now[..., None] * ramp
+        self.load = HumanLoad(start, fatigue_now, util_now, s.window_s)
+        self.human_free = self.load.free          # the load's array, updated in place
+        self.capture_s = start.capture_s
         self._cache: tuple | None = None
         self.touched = np.zeros((E, H), bool)
         # static per decode
         self.high = start.skill == 2
         self.points = start.points
         self.tx, self.ty = start.task_xy[..., 0], start.task_xy[..., 1]
-        self.prev_valid = np.zeros((E, P), bool)
-        if previous is not None:
-            alive = np.isfinite(np.take_along_axis(start.robot_free, previous.robot, axis=1))
-            self.prev_valid = alive
+        self.prev_valid = np.zeros((E, P), bool) if previous is None else \
+            np.isfinite(np.take_along_axis(start.robot_free, previous.robot, axis=1))
 
     def replay(self, kept: np.ndarray, alloc: Allocation | None = None) -> None:
         """Book the POIs in `kept` (E, P) with their triples in `alloc` (default: the previous
@@ -155,38 +146,8 @@ class Decoder:
         self.left &= ~kept
 
     # -- projections -----------------------------------------------------------------------------
-    def fatigue_at(self) -> np.ndarray:
-        """Projected F_f of every human (E, H) after the work booked so far: the estimate now,
-        moved by the model's change over the booked hours."""
-        fl = self.s.fatigue_floor
-        hours0 = self.start.hours
-        rise = tables.fatigue(hours0 + self.booked / 3600.0, fl) - tables.fatigue(hours0, fl)
-        return np.clip(self.fatigue_now + rise, fl, 1.0)
-
-    def _cum_at(self, t: np.ndarray) -> np.ndarray:
-        """Cumulative busy seconds of every human by times t (E, N, H) (linear within a bin)."""
-        G = self.edges.size
-        x = np.clip(t, 0.0, self.edges[-1]) / BIN_S
-        k = np.minimum(x.astype(np.int64), G - 2)
-        frac = x - k
-        E, H = self.human_free.shape
-        flat = self.cum.reshape(-1)
-        base = ((np.arange(E)[:, None] * H + np.arange(H)[None, :]) * G)[:, None, :]
-        lo = flat.take(base + k)
-        return lo + frac * (flat.take(base + k + 1) - lo)
-
-    def utilisation_at(self, t: np.ndarray) -> np.ndarray:
-        """Projected busy share of [t - window, t] of every human, t (E, N, H)."""
-        w = self.s.window_s
-        busy = self._cum_at(t) - self._cum_at(t - w)
-        span = np.minimum(w, np.maximum(t, 1e-9))
-        return np.clip(busy / span, 0.0, 1.0)
-
     def _book(self, e: np.ndarray, h: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
-        self.cum[e, h] += np.clip(self.edges[None, :] - a[:, None], 0.0,
-                                  (b - a)[:, None])
-        self.booked[e, h] += b - a
-        self.human_free[e, h] = np.maximum(self.human_free[e, h], b)
+        self.load.book(e, h, a, b)
         self._cache = None
 
     def _legs(self, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -200,27 +161,7 @@ class Decoder:
         gx = self.tx[e][:, None, :] - self.robot_xy[e, :, 0][..., None]
         gy = self.ty[e][:, None, :] - self.robot_xy[e, :, 1][..., None]
         travel = np.sqrt(gx * gx + gy * gy) / np.maximum(self.start.speed[e], 1e-9)[..., None]
-        return travel, self.robot_free[e][..., None] + travel + self.s.capture_s
-
-    def _human_value(self, q: np.ndarray, d: np.ndarray, arrive: np.ndarray, greedy: bool):
-        """For every human, classifying an image of quality q and difficulty d captured at
-        `arrive` (each (E, N)): (success probability, finish, begin, utilisation, F_w, F_f),
-        each (E, N, H). greedy: F_w = 1 and fatigue as greedy projects it (for the prior)."""
-        free = self.human_free[:, None, :]
-        begin = np.maximum(arrive[..., None], free)
-        finish = begin + tables.T_BAR[q, d][..., None]
-        f_d = tables.F_D[q, d][..., None]
-        if greedy:
-            f_f = tables.fatigue(self.start.hours + np.maximum(self.human_free - self.now, 0)
-                                 / 3600.0, self.s.fatigue_floor)[:, None, :]
-            f_w = u = None
-            p = 0.5 + (self.start.eta * self.start.lam)[:, None, :] * f_f * f_d
-        else:
-            f_f = self.fatigue_at()[:, None, :]
-            u = self.utilisation_at(begin)
-            f_w = tables.workload(u)
-            p = 0.5 + (self.start.eta * self.start.lam)[:, None, :] * f_f * f_w * f_d
-        return p, finish, begin, u, f_w, f_f
+        return travel, self.robot_free[e][..., None] + travel + self.capture_s
 
     def _greedy_net(self, q: np.ndarray, d: np.ndarray, pts: np.ndarray, arrive: np.ndarray,
                     t_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -228,7 +169,7 @@ class Decoder:
         captured at `arrive` (each (E, N)), worth `pts`: its expected points less the price of
         the human's time (the item, and its wait from `t_ref` (E,)); with the finish times.
         Both (E, N, H)."""
-        p_g, fin_g, _, _, _, _ = self._human_value(q, d, arrive, greedy=True)
+        p_g, fin_g, _, _, _, _ = self.load.classification(q, d, arrive, greedy=True)
         delay = np.maximum(self.human_free[:, None, :] - t_ref[:, None, None], 0.0)
         net = (tables.expected_points(pts[..., None], p_g)
                - self.s.human_time_cost * (tables.T_BAR[q, d][..., None] + delay))
@@ -257,8 +198,8 @@ class Decoder:
         heuristic_keeps = (heuristic.stack() == prev.stack()).all(-1)
         cls_h = np.maximum(prev.classifier, 0)
         by_human = prev.classifier >= 0
-        util = np.take_along_axis(self.util_now, cls_h, axis=1)
-        fat = np.take_along_axis(self.fatigue_now, cls_h, axis=1)
+        util = np.take_along_axis(self.load.util_now, cls_h, axis=1)
+        fat = np.take_along_axis(self.load.fatigue_now, cls_h, axis=1)
         load = np.zeros((E, self.R))
         lb, lp = np.nonzero(self.left)
         np.add.at(load, (lb, prev.robot[lb, lp]), 1.0)
@@ -301,7 +242,7 @@ class Decoder:
         hn = hf.argmin(axis=1)
         has_nav = np.isfinite(hf[e, hn])
         depart = np.maximum(t_ff, hf[e, hn])[:, None]
-        leg_nav = travel[e, r_ff] / tables.SKILL_SPEED[2] + s.capture_s
+        leg_nav = travel[e, r_ff] / tables.SKILL_SPEED[2] + self.capture_s
         arr_nav = np.where(has_nav[:, None], depart + leg_nav, np.inf)
         # greedy's prior: the rate of net points per robot second, both options
         rates, hum_best = [], []
@@ -315,8 +256,7 @@ class Decoder:
                 rate = value / (arr_o - t_ff[:, None] + s.rate_offset_s)
             rates.append(np.where(arr_o <= self.horizon, rate, -np.inf))
             # the learned features: the best human with workload and fatigue projected
-            p_h, fin_h, _, _, _, _ = self._human_value(q_o, d, np.minimum(arr_o, 1e12),
-                                                       greedy=False)
+            p_h, fin_h, _, _, _, _ = self.load.classification(q_o, d, np.minimum(arr_o, 1e12))
             ev_h = np.where(fin_h <= self.horizon,
                             tables.expected_points(self.points[..., None], p_h), -np.inf)
             hum_best.append(np.maximum(ev_h.max(-1), -35.0))
@@ -390,7 +330,7 @@ class Decoder:
         pts = self.points[e, p]
         skill = np.concatenate([np.ones((E, 1), np.int64), self.start.skill], 1)  # auto: 1
         speed_f = np.where(np.arange(H + 1)[None, :] == 0, 1.0, tables.SKILL_SPEED[skill])
-        leg = tr[:, None] / speed_f + s.capture_s
+        leg = tr[:, None] / speed_f + self.capture_s
         free = np.concatenate([t_r[:, None], np.maximum(t_r[:, None], self.human_free)], 1)
         arrive = free + leg
         q = tables.QUALITY[rtype[:, None], kind[:, None], skill]
@@ -404,8 +344,8 @@ class Decoder:
         mask = np.concatenate([np.ones((E, 1), bool), self.high], 1) & (arrive <= self.horizon)
         mask[:, 0] = True
         hz = self.horizon
-        util = np.concatenate([np.zeros((E, 1)), self.utilisation_at(free[:, None, 1:])[:, 0]],
-                              1)
+        util = np.concatenate([np.zeros((E, 1)),
+                               self.load.utilisation_at(free[:, None, 1:])[:, 0]], 1)
         prev_n = np.zeros((E, H + 1))
         if self.previous is not None:
             prev_n = (np.arange(H + 1)[None, :] == self.previous.navigator[e, p][:, None] + 1)
@@ -427,8 +367,8 @@ class Decoder:
         d = self.start.diff[e, p]
         pts = self.points[e, p]
         # the navigator is busy until the capture: for it the item starts then at the earliest
-        p_h, fin, begin, u, f_w, f_f = (x[:, 0] for x in self._human_value(
-            q[:, None], d[:, None], arrive[:, None], greedy=False))
+        p_h, fin, begin, u, f_w, f_f = (x[:, 0] for x in self.load.classification(
+            q[:, None], d[:, None], arrive[:, None]))
         ev_h = np.where(fin <= self.horizon, tables.expected_points(pts[:, None], p_h), 0.0)
         net_g, fin_g = (x[:, 0] for x in self._greedy_net(q[:, None], d[:, None], pts[:, None],
                                                           arrive[:, None], self.robot_free[e, r]))
@@ -474,7 +414,7 @@ class Decoder:
                  ) -> tuple[np.ndarray, np.ndarray]:
         """Capture time and image quality of robot r at POI p with navigator n (-1 auto)."""
         depart, travel, q = self._route(self.e, p, r, n)
-        return depart + travel + self.s.capture_s, q
+        return depart + travel + self.capture_s, q
 
     # -- commit ----------------------------------------------------------------------------------
     def commit(self, active: np.ndarray, p: np.ndarray, r: np.ndarray, n: np.ndarray,
@@ -489,7 +429,7 @@ class Decoder:
         if self.previous is not None and s.rebrief_s > 0:
             self._charge(e, p, n, c)
         depart, travel, q = self._route(e, p, r, n)
-        leg = travel + s.capture_s
+        leg = travel + self.capture_s
         arrive = depart + leg
         depart_nav = arrive - leg
         nb = n >= 0

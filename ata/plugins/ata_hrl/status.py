@@ -5,8 +5,8 @@ A stale POI row cannot tell from its own past that its robot has arrived; that s
 rows (the robot's row, the allocation in force) and in time (the plan the previous epoch made
 expected the capture by now). So the features of a POI read its own observed row and whether it
 is a copy of the last epoch's, the row of the robot the allocation in force gives it, and when
-the previous epoch's plan projected its capture (`ata.plugins.policies.plan.project`, the model
-in expectation on that epoch's observed estimates). Nothing here reads the true state; the
+the previous epoch's plan projected its capture (`ata.model.plan.project`, the model in
+expectation on that epoch's observed estimates). Nothing here reads the true state; the
 trainer pairs the features with the truth to fit the head (``StatusHead`` in the network).
 
 Its guesses go into the reconstructed-state dict: ``captured_guess`` (B, P, 1), POIs shown
@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from ata.core.state import Allocation, DecisionContext, Observation, SimState
-from ata.plugins.policies.plan import PlanStart, plan_start, project
+from ata.model.plan import PlanStart, plan_start, project
 
 STATUS_FEATURES = 17
 """Features per POI (see `status_features`)."""
@@ -89,7 +89,8 @@ class StatusTracker:
                                     self.prev_obs, self.prev_realloc, sim.allocation, arrival)
         ctx = DecisionContext(epoch=sim.epoch, time=sim.now, sizes=sim.sizes, clock=sim.clock,
                               inherent=inherent, observed=obs, reconstructed={},
-                              previous=sim.allocation, reallocatable=realloc, rng=sim.rng)
+                              previous=sim.allocation, reallocatable=realloc, rng=sim.rng,
+                              channel=sim.channel)
         self.prev_start = plan_start(ctx)
         self.prev_obs = {g: obs[g].features.copy() for g in ("tasks", "robots")}
         self.prev_realloc = realloc.copy()

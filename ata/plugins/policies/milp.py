@@ -31,7 +31,9 @@ from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext, SimState
 from ata.experiment.cache import cache_dir
 from ata.experiment.executors import ProcessExecutor
-from ata.plugins import tables
+from ata.model import tables
+from ata.model.greedy_planner import GreedySettings, plan
+from ata.model.team import CAPTURE_S, FATIGUE_FLOOR, HumanConstants, RobotConstants
 
 STATUS_TEXT = {0: "optimal", 1: "limit reached", 2: "infeasible", 3: "unbounded", 4: "error",
                -1: "not solved"}
@@ -60,16 +62,15 @@ class MilpSettings:
                                          help="share of the horizon a robot's route may take")
     tour_constant: float = param(0.7124, min=0.0, help="route length per POI is this times "
                                  "sqrt(area / POIs per robot) (Beardwood-Halton-Hammersley)")
-    fatigue_floor: float = param(0.4, min=0.0, max=1.0, help="F_f floor assumed")
-    capture_s: float = param(3.0, min=0.0, help="capture time assumed")
     workers: int = param(1, min=1, max=256, help="worker processes solving scenarios")
     chunk_size: int = param(16, min=1, help="scenarios per worker task")
 
 
 @dataclass
 class ScenarioData:
-    """What the MILP of one scenario is built from: I, the working hours in S at t = 0, and the
-    mission's horizon and uncertainty level. Plain arrays, so it travels to worker processes."""
+    """What the MILP of one scenario is built from: I, the working hours in S at t = 0, the
+    mission's horizon and uncertainty level, and the constants the team models publish. Plain
+    arrays, so it travels to worker processes."""
 
     kind: np.ndarray          # (P,) estimated kind
     diff: np.ndarray          # (P,) estimated difficulty
@@ -84,6 +85,8 @@ class ScenarioData:
     horizon_s: float
     event_p: float
     fatigue_sigma: float
+    fatigue_floor: float = FATIGUE_FLOOR
+    capture_s: float = CAPTURE_S
 
 
 @dataclass
@@ -143,12 +146,12 @@ def build_model(d: ScenarioData, s: MilpSettings, margin_scale: float = 1.0) -> 
         hum = 0.5 + d.eta[ch] * f_f * f_w * d.lam[ch] * tables.F_D[quality, difficulty]
         return np.where(human, hum, on)
 
-    f_f_nom = tables.fatigue(d.hours, s.fatigue_floor)[ch]
+    f_f_nom = tables.fatigue(d.hours, d.fatigue_floor)[ch]
     value = tables.expected_points(tables.POINTS[diff], success(q, diff, f_f_nom, 1.0))
     # pessimistic: fatigue after a shift at the utilisation cap, less the noise the level makes
     # plausible; a busy workload; and, with the level's probability, a harder POI of either kind
     worn = d.hours + s.human_utilisation_cap * d.horizon_s / 3600.0
-    f_f_pess = np.maximum(0.0, tables.fatigue(worn, s.fatigue_floor)
+    f_f_pess = np.maximum(0.0, tables.fatigue(worn, d.fatigue_floor)
                           - s.fatigue_sigmas * d.fatigue_sigma)[ch]
     f_w_pess = float(tables.workload(s.pessimistic_utilisation))
     p_same = success(q, diff, f_f_pess, f_w_pess)
@@ -168,10 +171,10 @@ def build_model(d: ScenarioData, s: MilpSettings, margin_scale: float = 1.0) -> 
     n = p_.size
 
     leg_m = s.tour_constant * np.sqrt(d.area_m ** 2 * R / max(P, 1))
-    per_poi_s = leg_m / type_speed + s.capture_s                        # (2,) robot seconds
+    per_poi_s = leg_m / type_speed + d.capture_s                        # (2,) robot seconds
     robot_slots = np.floor(s.robot_utilisation_cap * d.horizon_s / per_poi_s[d.rtype]).astype(int)
     type_slots = np.array([robot_slots[d.rtype == t].sum() for t in (0, 1)])
-    nav_s = leg_m / (type_speed[t_] * tables.SKILL_SPEED[2]) + s.capture_s
+    nav_s = leg_m / (type_speed[t_] * tables.SKILL_SPEED[2]) + d.capture_s
     cls_s = tables.T_BAR[q, diff]
     human_time = np.zeros((H, n))
     cols = np.arange(n)
@@ -379,6 +382,8 @@ def cacheable(sol: Solution, s: MilpSettings) -> bool:
 def scenario_data(ctx: DecisionContext, mission) -> list[ScenarioData]:
     """Split the batch's I (and the working hours of S at t = 0) into per-scenario inputs."""
     I, S = ctx.inherent, ctx.observed
+    floor = ctx.published(HumanConstants).fatigue_floor
+    capture_s = ctx.published(RobotConstants).capture_s
     area = I.extras["area_m"]
     hours = S["humans"].col("working_time") if S is not None else \
         np.zeros(I["humans"].features.shape[:2])
@@ -391,7 +396,8 @@ def scenario_data(ctx: DecisionContext, mission) -> list[ScenarioData]:
                          rtype=rtype[b], speed=I["robots"].col("speed")[b],
                          area_m=float(area[b]), horizon_s=ctx.clock.horizon_s,
                          event_p=float(mission.event_probability),
-                         fatigue_sigma=float(np.sqrt(mission.fatigue_variance)))
+                         fatigue_sigma=float(np.sqrt(mission.fatigue_variance)),
+                         fatigue_floor=float(floor), capture_s=float(capture_s))
             for b in range(ctx.reallocatable.shape[0])]
 
 
@@ -439,8 +445,6 @@ class MilpPolicy:
 
     @hookimpl
     def ata_initial_allocation(self, ctx: DecisionContext) -> Allocation:
-        from ata.plugins.policies.greedy import GreedyPolicy, plan
-
         self.solutions = self.solve_all(scenario_data(ctx, self.mission))
         B, P = ctx.reallocatable.shape
         triples = np.zeros((B, P, 3), dtype=np.int64)
@@ -452,7 +456,7 @@ class MilpPolicy:
         self.fallback = failed
         if failed.any():
             rows = np.nonzero(failed)[0]
-            greedy = plan(ctx.take(rows), GreedyPolicy.Settings(), np.ones((rows.size, P), bool))
+            greedy = plan(ctx.take(rows), GreedySettings(), np.ones((rows.size, P), bool))
             alloc.robot[rows], alloc.navigator[rows], alloc.classifier[rows] = \
                 greedy.robot, greedy.navigator, greedy.classifier
             first = self.solutions[rows[0]]

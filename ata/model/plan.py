@@ -1,12 +1,13 @@
 """Plans in expectation: where a plan starts from at a decision epoch, and what a fixed
-allocation is expected to earn from there (a public helper for allocation policies).
+allocation is expected to earn from there (the projection model of the allocation policies).
 
 Everything here reads what a policy may read, the inherent information I and the observed state
 S, and the model's tables; nothing reads the scenario's random streams or its true state. The
 projection is the model *in expectation on the observed estimates*: robots visit their POIs in
 nearest-neighbour order at their nominal speeds, humans take work first come first served,
 fatigue follows the working hours (which S shows without noise), workload is taken as 1, and a
-classification that cannot end by the horizon earns nothing.
+classification that cannot end by the horizon earns nothing. The capture time and the fatigue
+floor are the ones the team models publish (`ata.model.team`).
 """
 
 from __future__ import annotations
@@ -17,13 +18,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from ata.core.state import Allocation, DecisionContext
-from ata.plugins import tables
+from ata.model import tables
+from ata.model.team import CAPTURE_S, FATIGUE_FLOOR, HumanConstants, RobotConstants
 
 
 @dataclass
 class PlanStart:
-    """The state a plan starts from, per scenario (B) and member or POI. Times in seconds,
-    positions in metres; ``robot_free`` is inf for a robot observed down."""
+    """The state a plan starts from, per scenario (B) and member or POI, and the team's
+    constants a projection from it assumes. Times in seconds, positions in metres;
+    ``robot_free`` is inf for a robot observed down."""
 
     now: float
     horizon: float
@@ -42,6 +45,8 @@ class PlanStart:
     robot_free: np.ndarray     # (B, R)
     robot_xy: np.ndarray       # (B, R, 2) where each robot will be free
     robot_at: np.ndarray       # (B, R) the POI a committed leg ends at (-1: none)
+    capture_s: float = CAPTURE_S
+    fatigue_floor: float = FATIGUE_FLOOR
 
     @property
     def batch(self) -> int:
@@ -58,8 +63,15 @@ def as_seen(ctx: DecisionContext) -> DecisionContext:
     return dataclasses.replace(ctx, reallocatable=ctx.reallocatable & ~(guess[..., 0] > 0.5))
 
 
-def plan_start(ctx: DecisionContext, capture_s: float = 3.0) -> PlanStart:
-    """The plan's starting state at this epoch, from I and the observed S.
+def task_attributes(ctx: DecisionContext) -> np.ndarray:
+    """(B, P, 2) the POIs' kind and difficulty as currently seen (as estimated in I at t = 0)."""
+    src = ctx.observed["tasks"] if ctx.observed is not None else ctx.inherent["tasks"]
+    return np.stack([src.col("kind"), src.col("difficulty")], axis=-1)
+
+
+def plan_start(ctx: DecisionContext) -> PlanStart:
+    """The plan's starting state at this epoch, from I, the observed S and the constants the
+    team models published (`HumanConstants`, `RobotConstants`).
 
     A robot on a leg is free at the end of it (remaining distance at its nominal speed plus the
     capture), at its target; a captured image waiting for a human classifier books that human
@@ -69,6 +81,8 @@ def plan_start(ctx: DecisionContext, capture_s: float = 3.0) -> PlanStart:
     committed (``committed_guess``) as not reallocatable (`as_seen`).
     """
     ctx = as_seen(ctx)
+    capture_s = ctx.published(RobotConstants).capture_s
+    fatigue_floor = ctx.published(HumanConstants).fatigue_floor
     I, S = ctx.inherent, ctx.observed
     B, P = ctx.reallocatable.shape
     H, R = ctx.sizes.humans, ctx.sizes.robots
@@ -118,7 +132,8 @@ def plan_start(ctx: DecisionContext, capture_s: float = 3.0) -> PlanStart:
                      eta=h.col("cognitive").astype(float), lam=h.col("expertise").astype(float),
                      skill=h.col("skill").astype(np.int64), hours=hours, human_free=human_free,
                      robot_type=robot_type, speed=speed, robot_free=robot_free,
-                     robot_xy=robot_xy, robot_at=robot_at)
+                     robot_xy=robot_xy, robot_at=robot_at, capture_s=capture_s,
+                     fatigue_floor=fatigue_floor)
 
 
 @dataclass
@@ -136,7 +151,6 @@ class Projection:
 
 
 def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None, *,
-            capture_s: float = 3.0, fatigue_floor: float = 0.4,
             human_delay: np.ndarray | None = None,
             robot_delay: np.ndarray | None = None) -> Projection:
     """Expected outcome of `alloc` for the POIs in `tasks` (default: the open ones).
@@ -144,8 +158,10 @@ def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None
     The robot free first (among those with POIs left) goes to its nearest POI left; its
     navigator, if any, is busy for the leg from when both are free; its classifier, if human,
     from the capture or when free, whichever is later. ``human_delay`` / ``robot_delay`` (B, H)
-    / (B, R) seconds hold members before their first item (a re-brief, a re-plan).
+    / (B, R) seconds hold members before their first item (a re-brief, a re-plan). The
+    capture time and the fatigue floor are the start's.
     """
+    capture_s, fatigue_floor = start.capture_s, start.fatigue_floor
     B, P = start.points.shape
     H = start.eta.shape[1]
     left = (start.open if tasks is None else tasks & start.open).copy()

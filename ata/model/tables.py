@@ -1,4 +1,5 @@
-"""The tables and formulas of MODEL.md, as vectorised functions shared by the built-in models.
+"""The tables and formulas of MODEL.md, as arrays and vectorised functions, for the team models
+and the policies alike.
 
 Codes: kind 0 = air, 1 = ground; difficulty 0 = low, 1 = medium, 2 = high; image quality
 0 = Low, 1 = Medium, 2 = Upper-Medium, 3 = High; robot type 0 = UAV, 1 = UGV; skill band
@@ -8,6 +9,9 @@ Codes: kind 0 = air, 1 = ground; difficulty 0 = low, 1 = medium, 2 = high; image
 from __future__ import annotations
 
 import numpy as np
+
+from ata.model import team
+from ata.model.team import FATIGUE_FLOOR
 
 AIR, GROUND = 0, 1
 UAV, UGV = 0, 1
@@ -40,7 +44,7 @@ T_BAR = np.array([[45.0, 125.0, 245.0],
                   [15.0, 35.0, 95.0]])
 """T_BAR[quality, difficulty]: human classification time in seconds [testbed]."""
 
-SKILL_SPEED = np.array([2.0 / 3.0, 1.0, 1.5])
+SKILL_SPEED = np.array(team.SKILL_SPEED)
 """Speed multiplier under a human navigator of skill band low, medium, high [testbed ratio]."""
 
 
@@ -53,7 +57,7 @@ F_D = decision_difficulty(T_BAR)
 """F_D[quality, difficulty]."""
 
 
-def fatigue(hours: np.ndarray, floor: float = 0.4) -> np.ndarray:
+def fatigue(hours: np.ndarray, floor: float = FATIGUE_FLOOR) -> np.ndarray:
     """F_f: 1 below one working hour, then 1.3 - 0.3 T, not below ``floor``."""
     h = np.asarray(hours, dtype=float)
     return np.where(h < 1.0, 1.0, np.maximum(floor, 1.3 - 0.3 * h))
@@ -93,3 +97,31 @@ def navigator_class(navigator: np.ndarray, skill: np.ndarray) -> np.ndarray:
 def expected_points(points: np.ndarray, p_success: np.ndarray) -> np.ndarray:
     """Expected score of a classification: +points with p, -points with 1 - p."""
     return points * (2.0 * p_success - 1.0)
+
+
+def working_hours(t0_h: np.ndarray, busy_ticks: np.ndarray, now: float, tick_s: float
+                  ) -> np.ndarray:
+    """Working time T in hours at a tick boundary `now`: the initial T0 (B, H) plus the busy
+    seconds booked in the ticks before it (`busy_ticks`, (B, H, n_ticks))."""
+    k = int(round(now / tick_s))
+    return t0_h + busy_ticks[:, :, :k].sum(axis=2) / 3600.0
+
+
+def utilisation(busy_ticks: np.ndarray, now: float, tick_s: float, window_s: float
+                ) -> np.ndarray:
+    """Busy share u of the trailing `window_s` at a tick boundary `now` (of the elapsed time
+    before the window has passed), (B, H)."""
+    k = int(round(now / tick_s))
+    lo = max(0, k - int(round(window_s / tick_s)))
+    span = min(window_s, now)
+    if span <= 0:
+        return np.zeros(busy_ticks.shape[:2])
+    return np.minimum(1.0, busy_ticks[:, :, lo:k].sum(axis=2) / span)
+
+
+def awareness(sa: np.ndarray, sa_time: np.ndarray, now: float | np.ndarray,
+              recovery_per_min: float) -> np.ndarray:
+    """Situational awareness at `now` from its value `sa` at `sa_time`: it recovers by
+    `recovery_per_min` a minute, up to 1 (a value set for a later time stays as it is)."""
+    recovered = np.minimum(1.0, sa + recovery_per_min * (now - sa_time) / 60.0)
+    return np.where(sa_time <= now, recovered, sa)

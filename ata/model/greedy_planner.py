@@ -1,0 +1,312 @@
+"""The greedy planner: list scheduling on expected points, the ``greedy`` policy's allocation and
+the prior of the learned methods that build on it (a public host module, so that no policy
+imports another's).
+
+The robot that is free first (by the plan so far) takes the open POI with the best rate of net
+expected points per second of its time. For each POI it weighs driving autonomously against
+being navigated by the free-first highly skilled human (faster, one image quality level up, but
+the human is busy for the leg), and classifying onboard against the best human classifier for
+that image quality and difficulty. Human time has a price in points per second, so humans go
+where they add the most; classifications that could not finish by the horizon are worth 0.
+Everything it reads is observable: I, the observed S (fatigue is predicted from the noise-free
+working time), and the constants the team models publish (`ata.model.team`).
+
+Reallocation prices the re-tasking cost of MODEL.md section 3a (`ata.model.retask`). Where it
+is not zero, the planner weighs three candidates by their projected value in expectation
+(`ata.model.plan`) net of that cost and of the human time they book: keeping the allocation in
+force, repairing it (re-planning only the POIs of robots seen down and the POIs whose kind or
+difficulty changed since they were planned, after the work the rest keeps), and the full
+re-plan; it keeps the allocation unless a change gains more than it costs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ata.core.settings import param
+from ata.core.state import Allocation, DecisionContext
+from ata.model import tables
+from ata.model.plan import as_seen, plan_start, project, task_attributes
+from ata.model.retask import RetaskCost, retask_cost, worth
+from ata.model.team import HumanConstants, RobotConstants
+
+HUMAN_TIME_COST = 0.04
+"""The price of a human second in points, greedy's default."""
+RATE_OFFSET_S = 300.0
+"""Added to robot seconds in greedy's rate (favours value over nearness), its default."""
+
+
+@dataclass
+class GreedySettings:
+    """The planner's settings (the ``[greedy]`` table of the ``greedy`` policy)."""
+
+    human_time_cost: float = param(HUMAN_TIME_COST, min=0.0,
+                                   help="price of a human second, points")
+    rate_offset_s: float = param(RATE_OFFSET_S, min=0.0,
+                                 help="added to robot seconds in the rate (favours value over "
+                                      "nearness)")
+    human_navigators: bool = param(True, help="consider highly skilled human navigators")
+    retask_cost: bool = param(True, help="weigh re-tasking costs when reallocating (keep, "
+                              "repair or re-plan); false: always re-plan in full")
+    replan_in_full: bool = param(True, help="with retask_cost: count the full re-plan "
+                                 "among the candidates (false: keep or repair only)")
+
+
+class GreedyPlanner:
+    """Greedy list scheduling, with the memory its reallocation needs: the attributes each POI
+    was planned with."""
+
+    def __init__(self, settings: GreedySettings):
+        self.s = settings
+        self.planned_attrs: np.ndarray | None = None   # (B, P, 2) kind, difficulty planned with
+        self.choices = np.zeros(3, dtype=np.int64)      # keep / repair / re-plan, for reports
+
+    def initial(self, ctx: DecisionContext) -> Allocation:
+        """The initial allocation of every POI."""
+        self.planned_attrs = task_attributes(ctx)
+        return plan(ctx, self.s, np.ones(ctx.reallocatable.shape, dtype=bool))
+
+    def reallocate(self, ctx: DecisionContext, active: np.ndarray) -> Allocation:
+        """The reallocation of the `active` (B,) scenarios: the full re-plan when re-tasking is
+        free (or ignored), else the best of keeping, repairing and re-planning net of its cost."""
+        ctx = as_seen(ctx)
+        open_ = ctx.reallocatable & active[:, None]
+        cost = retask_cost(ctx)
+        if not self.s.retask_cost or cost.free or self.planned_attrs is None:
+            return plan(ctx, self.s, open_)
+        return self._cheapest(ctx, open_, cost)
+
+    def _cheapest(self, ctx: DecisionContext, open_: np.ndarray,
+                  cost: RetaskCost) -> Allocation:
+        """Keep, repair or re-plan in full (if `replan_in_full`), whichever is worth most net
+        of its cost."""
+        prev, S = ctx.previous, ctx.observed
+        attrs = task_attributes(ctx)
+        working = S["robots"].col("working") > 0.5
+        lost = ~np.take_along_axis(working, prev.robot, axis=1)
+        affected = open_ & (lost | (attrs != self.planned_attrs).any(axis=-1))
+        start = plan_start(ctx)
+        repair = prev.copy()
+        rows = np.nonzero(affected.any(axis=1))[0]
+        if rows.size:
+            kept = project(start, prev, open_ & ~affected)
+            after = dict(robot_free=kept.robot_free, robot_xy=kept.robot_xy,
+                         human_free=kept.human_free)
+            sub = _plan(ctx.take(rows), self.s, affected[rows],
+                        after={k: v[rows] for k, v in after.items()})
+            for field in ("robot", "navigator", "classifier"):
+                getattr(repair, field)[rows] = np.where(affected[rows], getattr(sub, field),
+                                                        getattr(prev, field)[rows])
+        candidates = (prev, repair) + ((plan(ctx, self.s, open_),) if self.s.replan_in_full
+                                       else ())
+        value = np.stack([worth(ctx, start, c, open_, cost, self.s.human_time_cost)
+                          for c in candidates], axis=1)
+        best = np.zeros(value.shape[0], dtype=np.int64)
+        # a change must gain more than it costs: keep wins ties
+        for i in range(1, len(candidates)):
+            best = np.where(value[:, i] > value[np.arange(best.size), best] + 1e-9, i, best)
+        self.choices += np.bincount(best, minlength=3)
+        out = prev.copy()
+        for i, cand in enumerate(candidates):
+            rows_i = best == i
+            for field in ("robot", "navigator", "classifier"):
+                getattr(out, field)[rows_i] = getattr(cand, field)[rows_i]
+        replanned = np.where((best == 2)[:, None], open_, np.where((best == 1)[:, None],
+                                                                  affected, False))
+        self.planned_attrs = np.where(replanned[..., None], attrs, self.planned_attrs)
+        return out
+
+
+def plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray) -> Allocation:
+    """Plan the triples of the `open_` (B, P) tasks; the others keep their previous triple."""
+    rows = np.nonzero(open_.any(axis=1))[0]
+    if ctx.previous is not None and rows.size < open_.shape[0]:
+        # plan only the scenarios with something to plan; the rest keep their allocation
+        out = ctx.previous.copy()
+        if rows.size:
+            sub = _plan(ctx.take(rows), s, open_[rows])
+            out.robot[rows], out.navigator[rows], out.classifier[rows] = \
+                sub.robot, sub.navigator, sub.classifier
+        return out
+    return _plan(ctx, s, open_)
+
+
+def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
+          after: dict[str, np.ndarray] | None = None) -> Allocation:
+    """Greedy list scheduling of the `open_` tasks. `after` (robot_free, robot_xy in metres,
+    human_free) replaces the starting state: the plan then follows work already planned."""
+    I, S = ctx.inherent, ctx.observed
+    B, P = open_.shape
+    H, R = ctx.sizes.humans, ctx.sizes.robots
+    horizon, now = ctx.clock.horizon_s, ctx.time
+    capture_s = ctx.published(RobotConstants).capture_s
+    fatigue_floor = ctx.published(HumanConstants).fatigue_floor
+    eta, lam = I["humans"].col("cognitive"), I["humans"].col("expertise")
+    skill = I["humans"].col("skill").astype(np.int64)
+    r_uav = I["robots"].col("uav") > 0.5
+    r_type = np.where(r_uav, tables.UAV, tables.UGV)
+    speed = I["robots"].col("speed")
+    t_xy = np.stack([I["tasks"].col("x"), I["tasks"].col("y")], axis=-1)
+    kind = S["tasks"].col("kind").astype(np.int64) if S is not None else \
+        I["tasks"].col("kind").astype(np.int64)
+    diff = S["tasks"].col("difficulty").astype(np.int64) if S is not None else \
+        I["tasks"].col("difficulty").astype(np.int64)
+    points = tables.POINTS[diff]
+    area = I.extras["area_m"][:, None]          # positions in I and S are shares of the side
+
+    b_all = np.arange(B)
+    robot_free = np.full((B, R), now)
+    robot_xy = (np.stack([S["robots"].col("x"), S["robots"].col("y")], -1) if S is not None
+                else np.full((B, R, 2), 0.5))
+    human_free = np.full((B, H), now)
+    hours = S["humans"].col("working_time").copy() if S is not None else np.zeros((B, H))
+    prev = ctx.previous
+    if S is not None:
+        working = S["robots"].col("working") > 0.5
+        robot_free[~working] = np.inf
+        target = S["robots"].col("target").astype(np.int64)
+        committed = (target >= 0) & ~np.take_along_axis(ctx.reallocatable, np.maximum(target, 0),
+                                                        axis=1) & working
+        if committed.any():
+            cb, cr = np.nonzero(committed)
+            dest = t_xy[cb, target[cb, cr]]
+            d = np.linalg.norm(dest - robot_xy[cb, cr], axis=-1) * area[cb, 0]
+            robot_free[cb, cr] = now + d / np.maximum(speed[cb, cr], 1e-9) + capture_s
+            robot_xy[cb, cr] = dest
+        if prev is not None:
+            waiting = S["tasks"].col("captured") > 0.5
+            wb, wp = np.nonzero(waiting & (prev.classifier >= 0))
+            np.add.at(human_free, (wb, prev.classifier[wb, wp]), tables.T_BAR[1, diff[wb, wp]])
+
+    robot = prev.robot.copy() if prev is not None else np.zeros((B, P), np.int64)
+    navigator = prev.navigator.copy() if prev is not None else np.full((B, P), -1, np.int64)
+    classifier = prev.classifier.copy() if prev is not None else np.full((B, P), -1, np.int64)
+    remaining = open_.copy()
+    high = skill == 2
+    # flat lookups: (quality, difficulty) -> q * 3 + d; a scenario's row b of an (B, K) array
+    # is at b * K in the flattened array (1-D takes are far cheaper than 2-D fancy indexing)
+    p_rc, t_bar, quality = tables.P_RC.ravel(), tables.T_BAR.ravel(), tables.QUALITY.ravel()
+    row12 = (b_all * 12)[:, None]
+    kind3 = kind * 3
+    points12 = np.tile(tables.POINTS, 4)
+    tx, ty = t_xy[..., 0] * area, t_xy[..., 1] * area
+    # distances once: task to task (B, P, P), and robot start to task (B, R, P); in the loop a
+    # robot is either where it started or at the last task it was given
+    gap_x, gap_y = tx[:, :, None] - tx[:, None, :], ty[:, :, None] - ty[:, None, :]
+    task_dist = np.sqrt(gap_x * gap_x + gap_y * gap_y)
+    del gap_x, gap_y
+    rx, ry = robot_xy[..., 0] * area, robot_xy[..., 1] * area
+    start_x, start_y = tx[:, None, :] - rx[:, :, None], ty[:, None, :] - ry[:, :, None]
+    start_dist = np.sqrt(start_x * start_x + start_y * start_y)
+    del start_x, start_y
+    at_task = np.full((B, R), -1, dtype=np.int64)
+    if S is not None and committed.any():
+        at_task[cb, cr] = target[cb, cr]
+    if after is not None:
+        robot_free = after["robot_free"].copy()
+        human_free = after["human_free"].copy()
+        rx, ry = after["robot_xy"][..., 0], after["robot_xy"][..., 1]
+        start_x, start_y = tx[:, None, :] - rx[:, :, None], ty[:, None, :] - ry[:, :, None]
+        start_dist = np.sqrt(start_x * start_x + start_y * start_y)
+        at_task[:] = -1
+
+    # per (robot type, navigator class auto / high skill): each task's (quality, difficulty)
+    # index into the 12 flattened combinations, offset to its scenario's row, and the
+    # expected points onboard; rows are picked per step by the chosen robot's type
+    combos = [(rt, nc) for rt in (tables.UAV, tables.UGV) for nc in (1, 2)]
+    qd_flat = np.stack([row12 + quality[rt * 6 + kind3 + nc] * 3 + diff for rt, nc in combos], 1)
+    ev_onboard = np.stack([points * (2 * p_rc[qd_flat[:, i] - row12] - 1)
+                           for i in range(len(combos))], axis=1)                # (B, 4, P)
+    tbar_task = np.stack([t_bar[qd_flat[:, i] - row12] for i in range(len(combos))], axis=1)
+    n_opt = 2 if (s.human_navigators and H > 0) else 1
+
+    for _ in range(P):
+        active = remaining.any(axis=1) & np.isfinite(robot_free.min(axis=1))
+        if not active.any():
+            break
+        rs = robot_free.argmin(axis=1)
+        t_free = robot_free[b_all, rs]
+        at = at_task[b_all, rs]
+        dist = task_dist[b_all, np.maximum(at, 0)]                              # (B, P)
+        if (at < 0).any():
+            dist = np.where((at < 0)[:, None], start_dist[b_all, rs], dist)
+        v = np.maximum(speed[b_all, rs], 1e-9)[:, None]
+        combo0 = r_type[b_all, rs] * 2
+
+        # best human classifier for each (quality, difficulty), given the plan so far
+        f_f = tables.fatigue(hours + np.maximum(human_free - now, 0) / 3600.0, fatigue_floor)
+        p_h = 0.5 + (eta * f_f * lam)[:, :, None] * tables.F_D.ravel()         # (B, H, 12)
+        delay = np.maximum(human_free - t_free[:, None], 0.0)[:, :, None]
+        net_h = points12 * (2 * p_h - 1) - s.human_time_cost * (t_bar + delay)
+        best_c = net_h.argmax(axis=1)                                          # (B, 12)
+        best_net = np.take_along_axis(net_h, best_c[:, None], axis=1)[:, 0].ravel()
+        best_free = np.take_along_axis(human_free, best_c, axis=1).ravel()
+
+        # option 0: the robot drives itself; option 1: the first free highly skilled human
+        # navigates (faster, one quality level up, the human busy for the leg)
+        arrivals = [t_free[:, None] + dist / v + capture_s]
+        nav_costs = [0.0]
+        if n_opt == 2:
+            hf = np.where(high, human_free, np.inf)
+            hn = hf.argmin(axis=1)
+            start = np.maximum(t_free, hf[b_all, hn])[:, None]
+            leg = dist / (v * tables.SKILL_SPEED[2]) + capture_s
+            arrivals.append(start + leg)          # inf where no highly skilled human exists
+            nav_costs.append(s.human_time_cost * leg)
+        scores = []
+        for o in range(n_opt):
+            arr = arrivals[o]
+            combo = combo0 + o
+            qd = qd_flat[b_all, combo]
+            ev_on = ev_onboard[b_all, combo]
+            finish = np.maximum(arr, best_free[qd]) + tbar_task[b_all, combo]
+            hum_net = np.where(finish <= horizon, best_net[qd], 0.0)
+            value = np.maximum(hum_net, ev_on) - nav_costs[o]
+            with np.errstate(invalid="ignore"):   # inf - inf for robots that are done
+                rate = value / (arr - t_free[:, None] + s.rate_offset_s)
+            scores.append(np.where(remaining & (arr <= horizon), rate, -np.inf))
+        score = np.concatenate(scores, axis=1)                                 # (B, O * P)
+        flat = score.argmax(axis=1)
+        o_star, p_star = np.divmod(flat, P)
+        ok = active & np.isfinite(score[b_all, flat])
+        # a robot with nothing it can reach in time is done
+        robot_free[b_all[active & ~ok], rs[active & ~ok]] = np.inf
+        if not ok.any():
+            continue
+        # the chosen option's details, for the chosen task only
+        b, p, o_b = b_all[ok], p_star[ok], o_star[ok]
+        combo = combo0[b] + o_b
+        qd = qd_flat[b, combo, p]
+        qq = (qd - row12[b, 0]) // 3
+        arr = np.where(o_b == 0, arrivals[0][b, p], arrivals[-1][b, p])
+        c = best_c.ravel()[qd]
+        finish = np.maximum(arr, best_free[qd]) + tbar_task[b, combo, p]
+        # a human classifier also when none can finish in time but onboard expects a loss:
+        # an unclassified POI scores 0
+        use_h = np.where(finish <= horizon, best_net[qd], 0.0) > ev_onboard[b, combo, p]
+        cls = np.where(use_h, c, -1)
+        nav = np.where(o_b == 1, hn[b] if n_opt == 2 else -1, -1)
+        robot[b, p] = rs[b]
+        navigator[b, p] = nav
+        classifier[b, p] = cls
+        remaining[b, p] = False
+        robot_free[b, rs[b]] = arr
+        at_task[b, rs[b]] = p
+        hn_b = nav >= 0
+        human_free[b[hn_b], nav[hn_b]] = arr[hn_b]
+        hc = cls >= 0
+        human_free[b[hc], cls[hc]] = (np.maximum(arr[hc], human_free[b[hc], cls[hc]])
+                                      + tables.T_BAR[qq[hc], diff[b[hc], p[hc]]])
+
+    if remaining.any():
+        # left over: give each to the robot whose plan ends first, driving itself, classified
+        # by the least loaded human (a POI nobody reaches scores 0 either way)
+        lb, lp = np.nonzero(remaining)
+        finite = np.where(np.isfinite(robot_free), robot_free, np.inf)
+        fallback = np.where(np.isfinite(finite).any(axis=1), finite.argmin(axis=1), 0)
+        robot[lb, lp] = fallback[lb]
+        navigator[lb, lp] = -1
+        classifier[lb, lp] = human_free.argmin(axis=1)[lb] if H > 0 else -1
+    return Allocation(robot, navigator, classifier)

@@ -1,0 +1,91 @@
+"""The humans' projected load while a plan is built step by step: when each is free, the work
+booked, and from it the fatigue and the utilisation over the trailing window (MODEL.md section
+5) at any time of the plan, in expectation. For policies that decode an allocation member by
+member (the ATA-HRL decoder)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ata.model import tables
+from ata.model.plan import PlanStart
+
+BIN_S = 10.0
+"""Width of the time bins of the cumulative busy-time grid (the utilisation projection)."""
+
+
+class HumanLoad:
+    """The projected load of every human of E plans, (E, H), from a `PlanStart`.
+
+    :param fatigue_now: (E, H) the fatigue estimate now (raw or reconstructed S); the
+        projection moves it with the model's change over the hours booked.
+    :param util_now: (E, H) each human's utilisation over the trailing window now, spread
+        evenly over that window; the plan's bookings add to it.
+    """
+
+    def __init__(self, start: PlanStart, fatigue_now: np.ndarray, util_now: np.ndarray,
+                 window_s: float):
+        self.start = start
+        self.window_s = window_s
+        self.free = start.human_free.copy()
+        self.booked = np.maximum(start.human_free - start.now, 0.0)
+        self.fatigue_now = np.clip(fatigue_now, start.fatigue_floor, 1.0)
+        self.util_now = np.clip(util_now, 0.0, 1.0)
+        # cumulative busy seconds of each human at the grid's edges
+        self.edges = np.arange(0.0, start.horizon + window_s + BIN_S, BIN_S)
+        ramp = np.clip(self.edges - (start.now - window_s), 0.0, window_s)
+        self.cum = self.util_now[..., None] * ramp
+
+    def fatigue_at(self) -> np.ndarray:
+        """Projected F_f of every human (E, H) after the work booked so far: the estimate now,
+        moved by the model's change over the booked hours."""
+        floor, hours0 = self.start.fatigue_floor, self.start.hours
+        rise = tables.fatigue(hours0 + self.booked / 3600.0, floor) - tables.fatigue(hours0, floor)
+        return np.clip(self.fatigue_now + rise, floor, 1.0)
+
+    def _cum_at(self, t: np.ndarray) -> np.ndarray:
+        """Cumulative busy seconds of every human by times t (E, N, H) (linear within a bin)."""
+        G = self.edges.size
+        x = np.clip(t, 0.0, self.edges[-1]) / BIN_S
+        k = np.minimum(x.astype(np.int64), G - 2)
+        frac = x - k
+        E, H = self.free.shape
+        flat = self.cum.reshape(-1)
+        base = ((np.arange(E)[:, None] * H + np.arange(H)[None, :]) * G)[:, None, :]
+        lo = flat.take(base + k)
+        return lo + frac * (flat.take(base + k + 1) - lo)
+
+    def utilisation_at(self, t: np.ndarray) -> np.ndarray:
+        """Projected busy share of [t - window, t] of every human, t (E, N, H)."""
+        w = self.window_s
+        busy = self._cum_at(t) - self._cum_at(t - w)
+        span = np.minimum(w, np.maximum(t, 1e-9))
+        return np.clip(busy / span, 0.0, 1.0)
+
+    def classification(self, q: np.ndarray, d: np.ndarray, arrive: np.ndarray,
+                       greedy: bool = False) -> tuple[np.ndarray, ...]:
+        """For every human, classifying an image of quality q and difficulty d captured at
+        `arrive` (each (E, N)): (success probability, finish, begin, utilisation, F_w, F_f),
+        each (E, N, H). greedy: as the greedy planner projects it (F_w = 1, utilisation and
+        F_w None, F_f from the working hours now plus the time until the human is free)."""
+        start = self.start
+        begin = np.maximum(arrive[..., None], self.free[:, None, :])
+        finish = begin + tables.T_BAR[q, d][..., None]
+        f_d = tables.F_D[q, d][..., None]
+        if greedy:
+            f_f = tables.fatigue(start.hours + np.maximum(self.free - start.now, 0) / 3600.0,
+                                 start.fatigue_floor)[:, None, :]
+            f_w = u = None
+            p = 0.5 + (start.eta * start.lam)[:, None, :] * f_f * f_d
+        else:
+            f_f = self.fatigue_at()[:, None, :]
+            u = self.utilisation_at(begin)
+            f_w = tables.workload(u)
+            p = 0.5 + (start.eta * start.lam)[:, None, :] * f_f * f_w * f_d
+        return p, finish, begin, u, f_w, f_f
+
+    def book(self, e: np.ndarray, h: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
+        """Book human h of plan e busy over [a, b) (each (n,))."""
+        self.cum[e, h] += np.clip(self.edges[None, :] - a[:, None], 0.0, (b - a)[:, None])
+        self.booked[e, h] += b - a
+        self.free[e, h] = np.maximum(self.free[e, h], b)
