@@ -154,7 +154,7 @@ def run(mission: Optional[str] = typer.Argument(
     saved in the run folder as it ends: rerun the same command with the same --out to go on
     after an interruption (only what is missing runs)."""
     from ata.experiment import runner
-    from ata.experiment.executors import make_executor
+    from ata.runtime.executors import make_executor
     from ata.experiment.runlog import RunLog
     from ata.experiment.units import chunks_of
 
@@ -424,7 +424,7 @@ def eval_(paths: List[str] = typer.Argument(
     from ata.experiment import report as rep
     from ata.experiment import runner
     from ata.core.errors import MissionError
-    from ata.experiment.executors import EXECUTORS, make_executor
+    from ata.runtime.executors import EXECUTORS, make_executor
     from ata.experiment.runlog import RunLog
 
     if executor not in EXECUTORS:

@@ -15,9 +15,9 @@ import pytest
 from _support import flat, tiny_data
 from ata.experiment import evaluate as ev
 from ata.experiment import report as rep
-from ata.experiment.cache import cache_dir, run_cache
+from ata.runtime.cache import cache_dir, run_cache
 from ata.core.errors import MissionError
-from ata.experiment.executors import ProcessExecutor, SerialExecutor
+from ata.runtime.executors import ProcessExecutor, SerialExecutor
 from ata import hookimpl
 from ata.core.kernel import Simulation
 from ata.experiment.evaluate import CORE_COLUMNS
@@ -172,7 +172,7 @@ def test_run_is_a_one_job_plan_of_the_eval_runner(cli, tmp_path, monkeypatch):
 @pytest.mark.ray
 def test_rows_identical_on_ray(suite):
     pytest.importorskip("ray")
-    from ata.experiment.executors import RayExecutor
+    from ata.runtime.executors import RayExecutor
 
     serial = _rows(SerialExecutor(), suite, chunk_size=5, scenarios=3)
     assert without_wall(_rows(RayExecutor(workers=2), suite, chunk_size=2, scenarios=3)) == \

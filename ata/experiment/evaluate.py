@@ -3,7 +3,7 @@
 A *suite* file names methods (each a mission file plus ``--set`` overrides) and the settings and
 uncertainty levels to run them at; a plain mission file counts as one method at its own setting
 and level. Every (method, setting, level) becomes a *job*: a validated mission whose scenarios
-are cut into chunks, the work units that an executor (ata.experiment.executors) runs anywhere. A
+are cut into chunks, the work units that an executor (ata.runtime.executors) runs anywhere. A
 scenario's numbers depend on (seed, scenario id) alone, so the rows do not depend on the
 executor, the worker count or the chunk size.
 
@@ -31,8 +31,8 @@ from ata.core.errors import MissionError
 from ata.core.kernel import Simulation
 from ata.core.mission import UNCERTAINTY_LEVELS, Mission
 from ata.experiment import runlog
-from ata.experiment.executors import Executor
-from ata.experiment.heldout import EVAL_FIRST_SCENARIO
+from ata.runtime.executors import Executor
+from ata.runtime.heldout import EVAL_FIRST_SCENARIO
 from ata.experiment.runner import Session, build_once, load_session, stamped_folder
 from ata.experiment.units import Unit, fixed_chunks, make_units, run_units, scenario_ids
 

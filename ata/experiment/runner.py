@@ -23,9 +23,9 @@ from ata.core.kernel import Simulation
 from ata.core.mission import Mission
 from ata.core.registry import Register, collect_components, get_plugin_manager
 from ata.experiment import runlog
-from ata.experiment.executors import Executor, ProcessExecutor, SerialExecutor
-from ata.experiment.heldout import EVAL_FIRST_SCENARIO
-from ata.experiment.inputs import file_digest
+from ata.runtime.executors import Executor, ProcessExecutor, SerialExecutor
+from ata.runtime.heldout import EVAL_FIRST_SCENARIO
+from ata.runtime.inputs import file_digest
 from ata.experiment.units import chunks_of, make_units, run_units
 
 BUILTIN_MISSION = Path(__file__).resolve().parent.parent / "missions" / "default.toml"
@@ -184,7 +184,7 @@ def run_mission(session: Session, progress: Callable[[float], None] | None = Non
     gives the same per-scenario numbers. Without `executor`, one worker runs the chunks here,
     several run them on a process executor. With `log` (`ata run`'s output folder), chunks it
     holds are not run again and each chunk is recorded there as it finishes. `cache` is the
-    run's cache folder (`ata.experiment.cache`; None: none).
+    run's cache folder (`ata.runtime.cache`; None: none).
     """
     mission = session.mission
     workers = workers or mission.settings.workers

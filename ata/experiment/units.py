@@ -22,8 +22,8 @@ from ata.core.kernel import Simulation
 from ata.core.mission import Mission
 from ata.core.registry import Register, collect_components, get_plugin_manager
 from ata.experiment import runlog
-from ata.experiment.cache import run_cache
-from ata.experiment.executors import Executor
+from ata.runtime.cache import run_cache
+from ata.runtime.executors import Executor
 
 
 def run_batch(mission: Mission, registry: Register, scenario_ids: np.ndarray,

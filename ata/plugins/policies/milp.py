@@ -29,8 +29,8 @@ from scipy.optimize import LinearConstraint, milp
 from ata import hookimpl
 from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext, SimState
-from ata.experiment.cache import cache_dir
-from ata.experiment.executors import ProcessExecutor
+from ata.runtime.cache import cache_dir
+from ata.runtime.executors import ProcessExecutor
 from ata.plugins import tables
 
 STATUS_TEXT = {0: "optimal", 1: "limit reached", 2: "infeasible", 3: "unbounded", 4: "error",
