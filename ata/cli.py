@@ -302,8 +302,10 @@ def compare(folders: List[Path] = typer.Argument(
         tables = cmp.compare(results[0], results[1] if len(results) > 1 else None, columns,
                              base=base, methods=_split_or_none(methods), power=power,
                              resamples=resamples)
-    for table in tables:
-        (terminal.markdown if markdown else terminal.table)(*table)
+    if markdown:
+        print(cmp.markdown(tables), end="")
+    for table in [] if markdown else tables:
+        terminal.table(table.title, table.header, table.rows)
 
 
 @app.command()

@@ -271,3 +271,20 @@ def test_a_sound_results_file_is_read(cli, tmp_path):
     (folder / "eval.json").write_text(json.dumps({"rows": 4}))
     result = cli("report", folder, "--no-figures")
     assert result.exit_code == 0, result.output
+
+
+def test_training_report_shows_every_value_at_80_columns(tmp_path):
+    """The per-phase summary is split into tables that fit; no value is cut short."""
+    pytest.importorskip("torch")
+    from typer.testing import CliRunner
+
+    from ata.cli import app
+    run = hrl_log(tmp_path / "run")
+    result = CliRunner(env={"COLUMNS": "80"}).invoke(app, ["report", str(run), "--no-figures"])
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    assert max(len(line) for line in lines) <= 80 and "…" not in result.output
+    header, rows = curves.curves_rows(curves.read_log(run))
+    assert len(header) == 7 and rows[1][4] == "300.0 -> 290.0 (330.0 at 15)"
+    for value in (v for row in rows for v in row):
+        assert any(value in line for line in lines), value

@@ -25,15 +25,44 @@ import numpy as np
 
 from ata.core.errors import MissionError
 from ata.experiment.results import (BOOTSTRAP_SEED, RESAMPLES, Results, bootstrap_ci,
-                                    check_column, paired)
+                                    check_column, nanmean, paired)
 
 BASE = "greedy"
 """The default base of a one-folder comparison, else the first method."""
 EXPECTED = "expected_score"
 """The column whose paired mean estimates the true difference in the power estimate."""
 Z = 1.959964
-Table = tuple[str, list[str], list[list[str]]]
-"""(title, header, rows) of one table, as text."""
+
+
+@dataclass
+class Table:
+    """One (setting, level)'s table, as text: `what` it shows, its header and rows."""
+
+    setting: str
+    level: str
+    what: str
+    header: list[str]
+    rows: list[list[str]]
+
+    @property
+    def title(self) -> str:
+        return f"setting {self.setting}, {self.level} uncertainty: {self.what}"
+
+
+def markdown(tables: list[Table]) -> str:
+    """The tables in Markdown: those of one kind (the same `what` and header) as one table
+    with a column for the (setting, level), under a heading."""
+    from ata.experiment.report import md_table
+
+    kinds: dict[tuple[str, tuple[str, ...]], list[Table]] = {}
+    for t in tables:
+        kinds.setdefault((t.what, tuple(t.header)), []).append(t)
+    lines: list[str] = []
+    for (what, header), group in kinds.items():
+        rows = [[t.rows[k][0], f"({t.setting}) {t.level}", *t.rows[k][1:]]
+                for t in group for k in range(len(t.rows))]
+        lines += [f"### {what}", "", *md_table([header[0], "cell", *header[1:]], rows), ""]
+    return "\n".join(lines)
 
 
 @dataclass
@@ -116,15 +145,16 @@ def _digits(values: list[float]) -> int:
     return 1 if top >= 10 else 2 if top >= 1 else 3
 
 
+def _signed(x: float, digits: int) -> str:
+    """x with its sign, rounded; no "-0.0" for a value that rounds to 0."""
+    return f"{round(x, digits) + 0.0:+.{digits}f}"
+
+
 def _groups(items: list[Pair]) -> dict[tuple[str, str], list[Pair]]:
     out: dict[tuple[str, str], list[Pair]] = {}
     for p in items:
         out.setdefault((p.setting, p.level), []).append(p)
     return out
-
-
-def _title(setting: str, level: str, what: str) -> str:
-    return f"setting {setting}, {level} uncertainty: {what}"
 
 
 def difference_tables(items: list[Pair], columns: list[str], versus: str,
@@ -142,13 +172,13 @@ def difference_tables(items: list[Pair], columns: list[str], versus: str,
             va, vb = p.values(columns[0])
             row = [p.pairing.label, str(va.size), str(int((va != vb).sum()))]
             for c in columns:
-                mean, low, high = stats[(id(p), c)]
                 d = digits[c]
-                row.append(f"{mean:+.{d}f} [{low:+.{d}f}, {high:+.{d}f}]")
+                mean, low, high = (_signed(x, d) for x in stats[(id(p), c)])
+                row.append(f"{mean} [{low}, {high}]")
             rows.append(row)
         header = ["method", "paired", f"differing in {columns[0]}"] + \
-            [f"{c}, A - B [95% CI]" for c in columns]
-        out.append((_title(setting, level, versus), header, rows))
+            [f"{c} difference [95% CI]" for c in columns]
+        out.append(Table(setting, level, versus, header, rows))
     return out
 
 
@@ -165,11 +195,12 @@ def power_tables(items: list[Pair], column: str, versus: str) -> list[Table]:
         for p in group:
             d = np.subtract(*p.values(column))
             e = np.subtract(*p.values(truth))
-            rows.append([p.pairing.label, str(d.size), _mean_se(d), _mean_se(e),
-                         _needed(d, e)])
-        header = ["method", "paired", f"{column}, A - B ± 1.96 SE (sd)",
-                  f"{truth}, A - B ± 1.96 SE (sd)", f"scenarios for a {column} CI above 0"]
-        out.append((_title(setting, level, versus), header, rows))
+            rows.append([p.pairing.label, str(d.size), _mean_se(d)]
+                        + ([_mean_se(e)] if truth != column else []) + [_needed(d, e)])
+        header = ["method", "paired", f"{column} difference ± 1.96 SE (sd)"] \
+            + ([f"{truth} difference ± 1.96 SE (sd)"] if truth != column else []) \
+            + [f"scenarios for a {column} CI above 0"]
+        out.append(Table(setting, level, versus, header, rows))
     return out
 
 
@@ -209,11 +240,11 @@ def mean_tables(folders: list[tuple[str, Results]], columns: list[str],
             sel = res.select(m, s, lv)
             means = [np.asarray(res.columns[c][sel], dtype=float) for c in columns]
             cells.setdefault((s, lv), []).append(
-                ([name] if len(folders) > 1 else []) + [m, str(int(sel.sum()))]
-                + ["-" if not np.isfinite(v).any() else f"{np.nanmean(v):.3f}" for v in means])
-    header = (["folder"] if len(folders) > 1 else []) + ["method", "rows"] + \
+                [m] + ([name] if len(folders) > 1 else []) + [str(int(sel.sum()))]
+                + ["-" if not np.isfinite(v).any() else f"{nanmean(v):.3f}" for v in means])
+    header = ["method"] + (["folder"] if len(folders) > 1 else []) + ["rows"] + \
         [f"{c}, mean" for c in columns]
-    return [(_title(s, lv, "column means"), header, rows) for (s, lv), rows in cells.items()]
+    return [Table(s, lv, "column means", header, rows) for (s, lv), rows in cells.items()]
 
 
 def compare(a: Results, b: Results | None, columns: list[str], *, base: str | None = None,
@@ -233,8 +264,7 @@ def compare(a: Results, b: Results | None, columns: list[str], *, base: str | No
     if b is None:
         versus = f"method - {found[0].b}, paired"
     else:
-        versus = "A - B, paired" if all(p.a == p.b for p in found) else \
-            f"A's method - B's {found[0].b}, paired"
+        versus = f"A's method - B's {base}, paired" if base else "A - B, paired"
     if power:
         return [t for c in columns for t in power_tables(items, c, versus)]
     return difference_tables(items, columns, versus, resamples)

@@ -123,13 +123,6 @@ def table(title: str, header: list[str], rows: list[list[str]]) -> None:
         console.print(drawn)
 
 
-def markdown(title: str, header: list[str], rows: list[list[str]]) -> None:
-    """The same table in Markdown, under a heading, on stdout."""
-    from ata.experiment.report import md_table
-
-    print("\n".join([f"### {title}", "", *md_table(header, rows), ""]))
-
-
 def key_values(title: str, rows: list[tuple[str, str]]) -> None:
     """A key per line (`ata run`'s summary): readable at 80 columns."""
     from rich import box
