@@ -20,16 +20,12 @@ from ata.experiment.terminal import console, err_console, note
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="ATA: adaptive task allocation in multi-human multi-robot teams.")
-
-
 terminal.help_without_type_tags()
 
 SetOption = typer.Option(None, "--set", "-s", metavar="TABLE.KEY=VALUE",
                          help="Override a mission key, e.g. --set mission.seed=3 (repeatable).")
 PluginsOption = typer.Option(None, "--plugins", metavar="NAME[,NAME]",
                              help="Optional plugins to load, comma-separated.")
-WorkersOption = typer.Option(None, "--workers", "-w", min=1, metavar="N",
-                             help="Worker processes, or local Ray CPUs.")
 AddressOption = typer.Option(None, "--address", metavar="ADDRESS",
                              help="Ray cluster address (default: $RAY_ADDRESS, else a local Ray).")
 ForceOption = typer.Option(False, "--force", help="Start over in an --out folder that holds the "
@@ -95,7 +91,8 @@ def run(mission: Optional[str] = typer.Argument(
         plugins: Optional[str] = PluginsOption,
         out: Optional[Path] = typer.Option(None, "--out", "-o", metavar="DIR",
                                            help="Run folder (default: runs/NAME-TIME)."),
-        workers: Optional[int] = WorkersOption,
+        workers: Optional[int] = typer.Option(None, "--workers", "-w", min=1, metavar="N",
+                                              help="Worker processes (default: the mission's)."),
         executor: Optional[str] = typer.Option(None, "--executor", "-e", metavar="NAME",
                                                help="serial, process or ray (default: serial "
                                                     "for one worker, else process)."),
