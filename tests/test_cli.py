@@ -481,3 +481,14 @@ def test_run_and_eval_refuse_a_training_run_folder(cli, tiny, tmp_path, command)
                                              "training run (log.csv); choose another folder")
     assert (folder / "mission.resolved.toml").read_text() == before
     assert sorted(p.name for p in folder.iterdir()) == ["log.csv", "mission.resolved.toml"]
+
+
+def test_show_takes_a_built_in_mission_and_writes_under_the_runs_folder(cli, tmp_path,
+                                                                        monkeypatch):
+    pytest.importorskip("matplotlib")
+    monkeypatch.setenv("ATA_RUNS", str(tmp_path / "runs"))
+    result = cli("show", "builtin:greedy", "-n", "0")
+    assert result.exit_code == 0, result.output
+    assert "greedy: scenario 0 (seed 0): score" in flat(result.output)
+    assert sorted(p.name for p in (tmp_path / "runs" / "show-greedy-0").glob("*.png")) == [
+        "show_humans.png", "show_map.png", "show_timeline.png"]
