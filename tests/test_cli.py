@@ -341,9 +341,9 @@ def test_a_latency_group_that_does_not_exist_is_refused_by_check(cli, tiny):
 
 def test_an_output_folder_under_a_file_is_refused_before_any_work(cli, tiny, tmp_path,
                                                                    monkeypatch):
-    from ata.experiment import runner
+    from ata.experiment import execute
     ran = []
-    monkeypatch.setattr(runner, "run_mission", lambda *a, **k: ran.append(1))
+    monkeypatch.setattr(execute, "run_units", lambda *a, **k: ran.append(1))
     blocker = tmp_path / "file"
     blocker.write_text("")
     assert_user_error(cli("run", tiny, "-q", "--out", blocker / "sub"),
