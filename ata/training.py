@@ -34,8 +34,8 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ata.core.errors import MissionError
-from ata.experiment.heldout import EVAL_FIRST_SCENARIO
-from ata.experiment.inputs import WEIGHTS, file_digest, resolve
+from ata.runtime.heldout import EVAL_FIRST_SCENARIO
+from ata.runtime.inputs import WEIGHTS, file_digest, resolve
 
 __all__ = ["TRAINING_ID_LIMIT", "VALIDATION_SEED_OFFSET", "WEIGHTS", "CheckpointError", "TrainRun",
            "file_digest", "load_cached", "read_checkpoint", "resolve", "trained_on"]

@@ -16,7 +16,7 @@ are spent, or until `--steps` environment steps are done (rounded up to whole ro
 the same `--seed` trains the same policy again.
 
 Then every method runs the same `--eval` held-out scenarios, ids from
-ata.experiment.heldout.EVAL_FIRST_SCENARIO (2**40), far from any id trained on: PPO acting
+ata.runtime.heldout.EVAL_FIRST_SCENARIO (2**40), far from any id trained on: PPO acting
 deterministically under the action masks, `random` (random triples, never reallocated, as
 examples/missions/random_baseline.toml) and `greedy` (the mission's own greedy with
 reallocation on events) through `ata run`'s runner. It prints each method's mean total points
@@ -35,7 +35,7 @@ import torch
 from sb3_contrib import MaskablePPO
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
-from ata.experiment.heldout import EVAL_FIRST_SCENARIO
+from ata.runtime.heldout import EVAL_FIRST_SCENARIO
 from ata.experiment.runner import load_session, mean_ci, run_mission
 from ata.gym import CentralisedVectorEnv
 

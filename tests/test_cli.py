@@ -205,7 +205,8 @@ def test_plugins_lists_the_optional_plugins_unloaded(cli):
 
 
 @pytest.mark.parametrize("args", [["run", "--help"], ["eval", "--help"], ["report", "--help"],
-                                  ["plugins"], ["run", "--set", "mission.scenarios=2", "-q"]])
+                                  ["compare", "--help"], ["plugins"],
+                                  ["run", "--set", "mission.scenarios=2", "-q"]])
 def test_output_fits_80_columns_without_type_tags(tmp_path, monkeypatch, args):
     from typer.testing import CliRunner
 
@@ -366,9 +367,9 @@ def test_a_latency_group_that_does_not_exist_is_refused_by_check(cli, tiny):
 
 def test_an_output_folder_under_a_file_is_refused_before_any_work(cli, tiny, tmp_path,
                                                                    monkeypatch):
-    from ata.experiment import runner
+    from ata.experiment import execute
     ran = []
-    monkeypatch.setattr(runner, "run_mission", lambda *a, **k: ran.append(1))
+    monkeypatch.setattr(execute, "run_units", lambda *a, **k: ran.append(1))
     blocker = tmp_path / "file"
     blocker.write_text("")
     assert_user_error(cli("run", tiny, "-q", "--out", blocker / "sub"),
@@ -377,9 +378,9 @@ def test_an_output_folder_under_a_file_is_refused_before_any_work(cli, tiny, tmp
 
 
 def test_two_runs_in_the_same_second_get_two_folders(tiny, tmp_path, monkeypatch):
-    from ata.experiment import runner
+    from ata.experiment import execute, runner
     monkeypatch.setenv("ATA_RUNS", str(tmp_path))
-    monkeypatch.setattr(runner.time, "strftime", lambda fmt: "20260101-000000")
+    monkeypatch.setattr(execute.time, "strftime", lambda fmt: "20260101-000000")
     mission = runner.load_session(str(tiny)).mission
     first, second = runner.default_out_dir(mission), runner.default_out_dir(mission)
     assert first.name == "tiny-20260101-000000"
@@ -410,3 +411,110 @@ def test_routing_in_components_is_pointed_to_the_robot_model(cli, tiny):
     assert_user_error(cli("check", tiny, "--set", "components.routing=nearest"),
                       "[components] key 'routing': routing is a setting of the robot model: "
                       "write it as [robot] routing (see: ata plugins --verbose)")
+
+
+# --- one run path: builtin missions, batches that save, the output folder's checks ---------------
+
+def test_run_and_check_take_a_built_in_mission_by_name(cli, tmp_path):
+    out = tmp_path / "run"
+    result = cli("run", "builtin:greedy", "--set", "mission.scenarios=2", "-q", "-o", out)
+    assert result.exit_code == 0, result.output
+    resolved = tomllib.loads((out / "mission.resolved.toml").read_text())
+    assert resolved["mission"]["name"] == "greedy" and resolved["mission"]["scenarios"] == 2
+    assert cli("check", "builtin:greedy").exit_code == 0
+    assert_user_error(cli("run", "builtin:nope", "-q"), "error: builtin:nope: no built-in "
+                      "mission 'nope'; there are: builtin:default, builtin:greedy,")
+
+
+def test_a_long_run_is_saved_in_batches_of_at_most_100_scenarios():
+    from ata.experiment.runner import BASELINE_MISSION, RUN_CHUNK, load_session, mission_plan
+    assert RUN_CHUNK == 100
+    session = load_session(str(BASELINE_MISSION), ["mission.scenarios=250"])
+    plan = mission_plan(session, 1)
+    assert [c.size for c in plan.chunks[0]] == [100, 100, 50]
+    assert (plan.units, plan.scenarios, plan.unit_name) == (3, 250, "batches")
+    assert [c.size for c in mission_plan(session, 1, 120).chunks[0]] == [120, 120, 10]
+    # batch_size caps the batches too; several workers share them out
+    small = load_session(str(BASELINE_MISSION), ["mission.scenarios=250",
+                                                 "mission.batch_size=60"])
+    assert [c.size for c in mission_plan(small, 1).chunks[0]] == [60, 60, 60, 60, 10]
+    assert [c.size for c in mission_plan(session, 4).chunks[0]] == [63, 63, 63, 61]
+
+
+def test_run_help_names_the_default_batch(cli):
+    from ata.experiment.units import RUN_CHUNK
+    assert f"default {RUN_CHUNK}" in flat(cli("run", "--help").output)
+
+
+@pytest.mark.parametrize("command", ["run", "eval"])
+def test_a_second_run_on_a_folder_in_use_is_refused_naming_the_first(cli, tiny, tmp_path,
+                                                                     command):
+    from ata.experiment.runlog import FolderLock
+    out = tmp_path / "busy"
+    out.mkdir()
+    args = [command, tiny, "-q", "-o", out] + (["-e", "serial"] if command == "eval" else [])
+    with FolderLock(out):
+        result = cli(*args)
+        assert_user_error(result, f"error: --out: {out} is in use by another run (pid "
+                                  f"{os.getpid()}, started ", "); wait for it to end, or "
+                                  "choose another folder")
+        assert sorted(p.name for p in out.iterdir()) == [".ata-lock"]
+    assert not (out / ".ata-lock").exists()           # let go: the folder is free again
+    result = cli(*args)
+    assert result.exit_code == 0, result.output
+    assert (out / "results.csv").exists() and not (out / ".ata-lock").exists()
+
+
+@pytest.mark.skipif(os.name != "posix", reason="flock and signals")
+def test_a_run_under_way_keeps_a_second_one_out(cli, tmp_path):
+    """A real `ata run` process holds its folder: a second run on it is refused (exit 2)
+    naming the first, and the folder is free again once the first is stopped."""
+    import signal
+    import time
+
+    out = tmp_path / "both"
+    first = subprocess.Popen([sys.executable, "-c", "from ata.cli import app; app()", "run",
+                              "builtin:greedy", "-q", "--set", "mission.scenarios=2000",
+                              "--chunk-size", "20", "-o", str(out)],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline = time.time() + 120
+        while not (out / ".ata-lock").exists() or \
+                str(first.pid) not in (out / ".ata-lock").read_text():
+            assert first.poll() is None and time.time() < deadline, first.stderr.read()
+            time.sleep(0.05)
+        second = cli("run", "builtin:greedy", "-q", "--set", "mission.seed=5", "-o", out)
+        assert_user_error(second, f"--out: {out} is in use by another run (pid {first.pid}, "
+                                  "started ", "run builtin:greedy -q")
+    finally:
+        first.send_signal(signal.SIGINT)
+        first.wait(timeout=60)
+    assert first.returncode == 130, first.stderr.read()
+    assert not (out / ".ata-lock").exists()
+    assert not (out / "mission.resolved.toml").exists()       # the first run wrote no result
+    assert json.loads((out / "plan.json").read_text())["scenarios"] == 2000
+
+
+@pytest.mark.parametrize("command", ["run", "eval"])
+def test_run_and_eval_refuse_a_training_run_folder(cli, tiny, tmp_path, command):
+    from ata.training import TrainRun
+    folder = tmp_path / "train"
+    TrainRun(folder, "[mission]\nname = 'trained'\n", ["step"])
+    before = (folder / "mission.resolved.toml").read_text()
+    args = [command, tiny, "-q", "-o", folder] + (["-e", "serial"] if command == "eval" else [])
+    assert_user_error(cli(*args, "--force"), f"error: --out: {folder} is the folder of a "
+                                             "training run (log.csv); choose another folder")
+    assert (folder / "mission.resolved.toml").read_text() == before
+    assert sorted(p.name for p in folder.iterdir()) == ["log.csv", "mission.resolved.toml"]
+
+
+def test_show_takes_a_built_in_mission_and_writes_under_the_runs_folder(cli, tmp_path,
+                                                                        monkeypatch):
+    pytest.importorskip("matplotlib")
+    monkeypatch.setenv("ATA_RUNS", str(tmp_path / "runs"))
+    result = cli("show", "builtin:greedy", "-n", "0")
+    assert result.exit_code == 0, result.output
+    assert "greedy: scenario 0 (seed 0): score" in flat(result.output)
+    assert sorted(p.name for p in (tmp_path / "runs" / "show-greedy-0").glob("*.png")) == [
+        "show_humans.png", "show_map.png", "show_timeline.png"]

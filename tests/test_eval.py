@@ -15,9 +15,10 @@ import pytest
 from _support import flat, tiny_data
 from ata.experiment import evaluate as ev
 from ata.experiment import report as rep
-from ata.experiment.cache import cache_dir, run_cache
+from ata.experiment import results
+from ata.runtime.cache import cache_dir, run_cache
 from ata.core.errors import MissionError
-from ata.experiment.executors import ProcessExecutor, SerialExecutor
+from ata.runtime.executors import ProcessExecutor, SerialExecutor
 from ata import hookimpl
 from ata.core.kernel import Simulation
 from ata.experiment.evaluate import CORE_COLUMNS
@@ -172,7 +173,7 @@ def test_run_is_a_one_job_plan_of_the_eval_runner(cli, tmp_path, monkeypatch):
 @pytest.mark.ray
 def test_rows_identical_on_ray(suite):
     pytest.importorskip("ray")
-    from ata.experiment.executors import RayExecutor
+    from ata.runtime.executors import RayExecutor
 
     serial = _rows(SerialExecutor(), suite, chunk_size=5, scenarios=3)
     assert without_wall(_rows(RayExecutor(workers=2), suite, chunk_size=2, scenarios=3)) == \
@@ -361,23 +362,23 @@ def test_milp_eval_rows_same_with_and_without_cache(cli, tmp_path):
 
 # -- the report ---------------------------------------------------------------------------------
 def test_bootstrap_ci_known_answers():
-    assert rep.bootstrap_ci(np.full(50, 3.5)) == (3.5, 3.5, 3.5)
-    mean, low, high = rep.bootstrap_ci([7.0])
+    assert results.bootstrap_ci(np.full(50, 3.5)) == (3.5, 3.5, 3.5)
+    mean, low, high = results.bootstrap_ci([7.0])
     assert mean == low == high == 7.0
-    assert all(math.isnan(x) for x in rep.bootstrap_ci([]))
+    assert all(math.isnan(x) for x in results.bootstrap_ci([]))
     x = np.random.default_rng(1).normal(10.0, 2.0, 4000)
-    mean, low, high = rep.bootstrap_ci(x)
+    mean, low, high = results.bootstrap_ci(x)
     half = 1.959964 * x.std(ddof=1) / math.sqrt(x.size)
     assert mean == pytest.approx(x.mean())
     assert low == pytest.approx(mean - half, abs=0.15 * half)
     assert high == pytest.approx(mean + half, abs=0.15 * half)
-    assert rep.bootstrap_ci(x) == (mean, low, high)        # a fixed seed: the same every time
+    assert results.bootstrap_ci(x) == (mean, low, high)        # a fixed seed: the same every time
 
 
 def test_beat_probability():
-    assert rep.beat_probability([10, 20, 30, 40], [5, 20, 35, 10]) == 0.625
-    assert rep.beat_probability([1, 1], [1, 1]) == 0.5
-    assert math.isnan(rep.beat_probability([], []))
+    assert results.beat_probability([10, 20, 30, 40], [5, 20, 35, 10]) == 0.625
+    assert results.beat_probability([1, 1], [1, 1]) == 0.5
+    assert math.isnan(results.beat_probability([], []))
 
 
 
@@ -405,7 +406,7 @@ def write_results(path: Path) -> None:
 
 def test_report_table_and_probabilities(tmp_path):
     write_results(tmp_path / "results.csv")
-    report = rep.summarize(rep.read_results(tmp_path))
+    report = rep.summarize(results.read_results(tmp_path))
     assert report.reference == "ATA-HRL"
     assert report.groups() == [(s, lv) for s in "ab" for lv in ("low", "medium", "high")]
     cells = {(c.method, c.setting, c.level): c for c in report.cells}
@@ -414,7 +415,7 @@ def test_report_table_and_probabilities(tmp_path):
     assert math.isnan(cells[("ATA-HRL", "a", "low")].beats)
     assert cells[("ATA-HRL", "b", "high")].mean == 26.0
     assert cells[("greedy", "a", "low")].fraction_of_u == pytest.approx(0.175)
-    other = rep.summarize(rep.read_results(tmp_path), reference="greedy")
+    other = rep.summarize(results.read_results(tmp_path), reference="greedy")
     flipped = {(c.method, c.setting, c.level): c for c in other.cells}
     assert flipped[("ATA-HRL", "a", "low")].beats == 0.375
     # the paired difference, matched by scenario id (greedy's rows are reversed at (a, low)):
@@ -479,8 +480,8 @@ def test_report_reads_several_evaluations_together(cli, tmp_path):
                        ("two", lambda r: r["method"] == "greedy")):
         (tmp_path / name).mkdir()
         write_csv(tmp_path / name / "results.csv", CORE_COLUMNS, [r for r in rows if keep(r)])
-    merged = rep.summarize(rep.read_results([tmp_path / "one", tmp_path / "two"]))
-    whole = rep.summarize(rep.read_results(tmp_path / "all.csv"))
+    merged = rep.summarize(results.read_results([tmp_path / "one", tmp_path / "two"]))
+    whole = rep.summarize(results.read_results(tmp_path / "all.csv"))
     key = lambda c: (c.method, c.setting, c.level)  # noqa: E731
     assert sorted(map(key, merged.cells)) == sorted(map(key, whole.cells))
     assert {key(c): c.beats for c in merged.cells if c.method == "greedy"} == \
@@ -488,7 +489,7 @@ def test_report_reads_several_evaluations_together(cli, tmp_path):
     res = cli("report", tmp_path / "one", tmp_path / "two", "--no-figures")
     assert res.exit_code == 0 and (tmp_path / "one" / "report.md").exists()
     res = cli("report", tmp_path / "one", tmp_path / "one", "--no-figures")
-    assert res.exit_code == 2 and "appears twice" in flat(res.output)
+    assert res.exit_code == 2 and f"{tmp_path / 'one'}: is named twice" in flat(res.output)
 
 
 def test_run_takes_a_cache_folder_too(cli, tmp_path):

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from _support import flat
+from ata.experiment import curves, results
 from ata.experiment import report as rep
 from ata.experiment.evaluate import CORE_COLUMNS
 from ata.experiment.runlog import write_csv
@@ -48,7 +49,7 @@ def write_results(path: Path, methods=tuple(SCORES)) -> None:
 # -- paired differences -------------------------------------------------------------------------
 def test_paired_differences_equal_a_hand_computation(tmp_path):
     write_results(tmp_path / "results.csv")
-    res = rep.read_results(tmp_path)
+    res = results.read_results(tmp_path)
     assert rep.paired_reference(res) == "greedy"
     paired = {(p.method, p.setting, p.level): p
               for p in rep.paired_differences(res, "greedy")}
@@ -58,7 +59,7 @@ def test_paired_differences_equal_a_hand_computation(tmp_path):
     p = paired[("ATA-HRL", "a", "low")]
     assert (p.method, p.reference, p.n) == ("ATA-HRL", "greedy", 5)
     assert p.mean == pytest.approx(np.mean([5, 0, -5, 30, 50])) == 16.0
-    assert (p.mean, p.low, p.high) == rep.bootstrap_ci([5, 0, -5, 30, 50])
+    assert (p.mean, p.low, p.high) == results.bootstrap_ci([5, 0, -5, 30, 50])
     assert p.low < p.mean < p.high
     # (b, high): ATA-HRL scores 7 + 3i more, greedy 3i more: the differences gain 7
     assert paired[("ATA-HRL", "b", "high")].mean == pytest.approx(23.0)
@@ -75,7 +76,7 @@ def test_paired_differences_equal_a_hand_computation(tmp_path):
 
 def test_paired_reference_default_and_unknown(tmp_path):
     write_results(tmp_path / "results.csv", methods=("random", "ATA-HRL"))
-    res = rep.read_results(tmp_path)
+    res = results.read_results(tmp_path)
     assert rep.paired_reference(res) == "random"              # no greedy: the first method
     assert rep.paired_reference(res, "ATA-HRL") == "ATA-HRL"
     with pytest.raises(MissionError, match="no method 'nobody'"):
@@ -148,28 +149,28 @@ def test_training_folder_report_writes_its_curves(cli, tmp_path, make):
     pytest.importorskip("matplotlib")
     pytest.importorskip("torch")
     run = make(tmp_path / "run")
-    assert rep.is_training_folder(run)
+    assert curves.is_training_folder(run)
     res = cli("report", run)
     assert res.exit_code == 0, res.output
     for ext in ("png", "svg"):
         assert (run / f"fig_curves.{ext}").stat().st_size > 1000
     md = (run / "curves.md").read_text()
     assert "![fig_curves](fig_curves.png)" in md
-    log = rep.read_log(run)
+    log = curves.read_log(run)
     assert set(log.panels()) == {"score", "held_out", "loss", "speed"}
     assert "mean_score" in flat(res.output)
 
 
 def test_training_log_phases_and_summary(tmp_path):
     pytest.importorskip("torch")
-    log = rep.read_log(hrl_log(tmp_path / "run"))
+    log = curves.read_log(hrl_log(tmp_path / "run"))
     assert [p[0] for p in log.phases] == ["aux", "ita", "ctr"]
     assert log.starts == [0.0, 8.0, 28.0]                   # each phase after the one before
     assert log.x[0] == 1.0 and log.x[8] == 8.0 and log.x[-1] == 38.0
     assert log.panels() == {"score": ["mean_score"], "held_out": ["eval_score", "eval_expected"],
                             "loss": ["loss", "aux_fatigue_mse", "aux_latency_mse"],
                             "speed": ["episodes_per_s"]}
-    header, rows = rep.curves_rows(log)
+    header, rows = curves.curves_rows(log)
     assert header[:2] == ["phase", "steps"]
     assert [r[:2] for r in rows] == [["aux", "1-8"], ["ita", "0-20"], ["ctr", "0-10"]]
     held = header.index("eval_score: first -> last (best at step)")
@@ -180,15 +181,15 @@ def test_training_log_phases_and_summary(tmp_path):
 
 def test_rows_logged_again_by_a_resumed_run_are_left_out(tmp_path):
     pytest.importorskip("torch")
-    log = rep.read_log(dqn_log(tmp_path / "run", steps=[1, 2, 3, 4, 2, 3, 4, 5]))
+    log = curves.read_log(dqn_log(tmp_path / "run", steps=[1, 2, 3, 4, 2, 3, 4, 5]))
     assert log.superseded == 3
     assert list(log.columns["step"]) == [1, 2, 3, 4, 5]
     assert list(log.columns["mean_score"]) == [51, 52, 53, 54, 55]
 
 
 def test_moving_mean():
-    assert list(rep.moving_mean(np.arange(5.0), 3)) == [0.5, 1.0, 2.0, 3.0, 3.5]
-    assert list(rep.moving_mean(np.arange(3.0), 1)) == [0.0, 1.0, 2.0]
+    assert list(curves.moving_mean(np.arange(5.0), 3)) == [0.5, 1.0, 2.0, 3.0, 3.5]
+    assert list(curves.moving_mean(np.arange(3.0), 1)) == [0.0, 1.0, 2.0]
 
 
 BAD_LOGS = [
@@ -270,3 +271,20 @@ def test_a_sound_results_file_is_read(cli, tmp_path):
     (folder / "eval.json").write_text(json.dumps({"rows": 4}))
     result = cli("report", folder, "--no-figures")
     assert result.exit_code == 0, result.output
+
+
+def test_training_report_shows_every_value_at_80_columns(tmp_path):
+    """The per-phase summary is split into tables that fit; no value is cut short."""
+    pytest.importorskip("torch")
+    from typer.testing import CliRunner
+
+    from ata.cli import app
+    run = hrl_log(tmp_path / "run")
+    result = CliRunner(env={"COLUMNS": "80"}).invoke(app, ["report", str(run), "--no-figures"])
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    assert max(len(line) for line in lines) <= 80 and "…" not in result.output
+    header, rows = curves.curves_rows(curves.read_log(run))
+    assert len(header) == 7 and rows[1][4] == "300.0 -> 290.0 (330.0 at 15)"
+    for value in (v for row in rows for v in row):
+        assert any(value in line for line in lines), value

@@ -1,9 +1,9 @@
 """`ata eval`: many methods, team settings and uncertainty levels on held-out scenarios.
 
-A *suite* file names methods (each a mission file plus ``--set`` overrides) and the settings and
-uncertainty levels to run them at; a plain mission file counts as one method at its own setting
-and level. Every (method, setting, level) becomes a *job*: a validated mission whose scenarios
-are cut into chunks, the work units that an executor (ata.experiment.executors) runs anywhere. A
+A *suite* file (`ata.experiment.suites`) names methods (each a mission file plus ``--set``
+overrides) and the settings and uncertainty levels to run them at; a plain mission file counts
+as one method at its own setting and level. Every (method, setting, level) becomes a *job*: a validated mission whose scenarios
+are cut into chunks, the work units that an executor (ata.runtime.executors) runs anywhere. A
 scenario's numbers depend on (seed, scenario id) alone, so the rows do not depend on the
 executor, the worker count or the chunk size.
 
@@ -18,7 +18,7 @@ from __future__ import annotations
 import json
 import os
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
@@ -26,15 +26,16 @@ import numpy as np
 import tomli_w
 
 from ata import __version__
-from ata.core import mission as mission_mod
 from ata.core.errors import MissionError
 from ata.core.kernel import Simulation
 from ata.core.mission import UNCERTAINTY_LEVELS, Mission
 from ata.experiment import runlog
-from ata.experiment.executors import Executor
-from ata.experiment.heldout import EVAL_FIRST_SCENARIO
-from ata.experiment.runner import Session, build_once, load_session, stamped_folder
+from ata.experiment.execute import Done, Plan, stamped_folder
+from ata.experiment.runner import Session, build_once, load_session
+from ata.experiment.suites import MethodSpec, Suite, load_suite
 from ata.experiment.units import Unit, fixed_chunks, make_units, run_units, scenario_ids
+from ata.runtime.executors import Executor
+from ata.runtime.heldout import EVAL_FIRST_SCENARIO
 
 DEFAULT_SCENARIOS = 500
 """Scenarios per (method, setting, level) when neither the suite nor the command says."""
@@ -44,156 +45,6 @@ DEFAULT_CHUNK = 50
 CORE_COLUMNS = ["method", "setting", "uncertainty", "scenario", "seed", "score", "upper_bound",
                 "fraction_of_u", "classified_share", "reallocations", "wall_s"]
 """The first columns of results.csv; the components' other per-scenario metrics follow, sorted."""
-
-SUITE_KEYS = {"name": "a label for the evaluation",
-              "description": "free text",
-              "settings": "team settings to run every method at (a, b, custom)",
-              "uncertainty": "uncertainty levels to run every method at",
-              "scenarios": "scenarios per (method, setting, level)",
-              "seed": "root seed of the evaluation scenarios"}
-METHOD_KEYS = {"name": "the method's label in results and reports",
-               "mission": "its mission file, relative to the suite file, or builtin:NAME",
-               "set": "--set overrides applied to the mission",
-               "plugins": "optional plugins to load",
-               "settings": "team settings for this method (instead of the suite's)",
-               "uncertainty": "uncertainty levels for this method (instead of the suite's)",
-               "setting": "per-setting tables: [method.setting.b] set = [...]"}
-FIXED_KEYS = ("setting", "uncertainty", "seed", "scenarios", "first_scenario")
-"""[mission] keys the evaluation sets itself; a method may not override them."""
-BUILTIN_MISSIONS = Path(__file__).resolve().parent.parent / "missions"
-
-
-# -- suites -------------------------------------------------------------------------------------
-@dataclass
-class MethodSpec:
-    """One method of a suite: a mission file and its overrides."""
-
-    name: str
-    source: str                       # the suite (or mission) file that defines it
-    mission: str                      # the mission file
-    overrides: list[str] = field(default_factory=list)
-    plugins: list[str] = field(default_factory=list)
-    settings: list[str] | None = None   # None: the suite's (or the mission's own)
-    levels: list[str] | None = None
-    per_setting: dict[str, list[str]] = field(default_factory=dict)
-
-
-@dataclass
-class Suite:
-    """A suite file, or a plain mission file as a one-method suite (`own` is then True)."""
-
-    path: str
-    name: str
-    methods: list[MethodSpec]
-    settings: list[str] | None = None
-    levels: list[str] | None = None
-    scenarios: int | None = None
-    seed: int | None = None
-    own: bool = False
-    raw: dict[str, Any] = field(default_factory=dict)
-
-
-def _strings(value: Any, where: str, key: str, path: str) -> list[str]:
-    if isinstance(value, str):
-        value = [value]
-    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
-        raise MissionError(where, key, "must be a list of strings", file=path)
-    return list(value)
-
-
-def _int(value: Any, where: str, key: str, path: str, low: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < low:
-        raise MissionError(where, key, f"must be an integer >= {low}", file=path)
-    return value
-
-
-def _unknown(table: dict, allowed: dict, where: str, path: str) -> None:
-    for key in table:
-        if key not in allowed:
-            raise MissionError(where, key, "unknown key; allowed: " + ", ".join(allowed),
-                               file=path)
-
-
-def _mission_path(spec: str, base: Path, where: str, path: str) -> str:
-    if spec.startswith("builtin:"):
-        target = BUILTIN_MISSIONS / f"{spec.split(':', 1)[1]}.toml"
-    else:
-        target = Path(spec).expanduser()
-        if not target.is_absolute():
-            target = base / target
-    if not target.is_file():
-        raise MissionError(where, "mission", f"no such mission file: {target}", file=path)
-    return str(target)
-
-
-def load_suite(path: str | Path) -> Suite:
-    """Read a suite file, or a mission file (a table [mission]) as a one-method suite."""
-    path = str(path)
-    raw = mission_mod.read_toml(path)
-    if "suite" not in raw and "method" not in raw:
-        if "mission" not in raw:
-            raise MissionError("", None, "neither a suite (a table [suite] and [[method]] "
-                               "tables) nor a mission file (a table [mission])", file=path)
-        name = raw["mission"].get("name", "mission") if isinstance(raw["mission"], dict) \
-            else "mission"
-        method = MethodSpec(name=str(name), source=path, mission=path)
-        return Suite(path=path, name=str(name), methods=[method], own=True, raw=raw)
-    _unknown(raw, {"suite": 1, "method": 1}, "", path)
-    head = raw.get("suite", {})
-    if not isinstance(head, dict):
-        raise MissionError("[suite]", None, "must be a table", file=path)
-    _unknown(head, SUITE_KEYS, "[suite]", path)
-    suite = Suite(path=path, name=str(head.get("name", Path(path).stem)), methods=[], raw=raw)
-    if "settings" in head:
-        suite.settings = _strings(head["settings"], "[suite]", "settings", path)
-    if "uncertainty" in head:
-        suite.levels = _strings(head["uncertainty"], "[suite]", "uncertainty", path)
-    if "scenarios" in head:
-        suite.scenarios = _int(head["scenarios"], "[suite]", "scenarios", path, 1)
-    if "seed" in head:
-        suite.seed = _int(head["seed"], "[suite]", "seed", path, 0)
-    methods = raw.get("method", [])
-    if not isinstance(methods, list) or not methods or \
-            not all(isinstance(m, dict) for m in methods):
-        raise MissionError("[[method]]", None, "a suite needs one or more [[method]] tables",
-                           file=path)
-    base = Path(path).resolve().parent
-    for i, table in enumerate(methods):
-        label = table.get("name")
-        where = f"[[method]] {label!r}" if isinstance(label, str) else f"[[method]] #{i + 1}"
-        _unknown(table, METHOD_KEYS, where, path)
-        if not isinstance(label, str) or not label.strip():
-            raise MissionError(where, "name", "is required (a string)", file=path)
-        if "mission" not in table or not isinstance(table["mission"], str):
-            raise MissionError(where, "mission", "is required (a mission file)", file=path)
-        spec = MethodSpec(name=label, source=path,
-                          mission=_mission_path(table["mission"], base, where, path))
-        spec.overrides = _strings(table.get("set", []), where, "set", path)
-        spec.plugins = _strings(table.get("plugins", []), where, "plugins", path)
-        if "settings" in table:
-            spec.settings = _strings(table["settings"], where, "settings", path)
-        if "uncertainty" in table:
-            spec.levels = _strings(table["uncertainty"], where, "uncertainty", path)
-        per = table.get("setting", {})
-        if not isinstance(per, dict):
-            raise MissionError(where, "setting", "must be a table of settings, e.g. "
-                               "[method.setting.b]", file=path)
-        for setting, sub in per.items():
-            if not isinstance(sub, dict):
-                raise MissionError(f"{where} setting {setting!r}", None, "must be a table",
-                                   file=path)
-            _unknown(sub, {"set": "--set overrides for this setting"},
-                     f"{where} setting {setting!r}", path)
-            spec.per_setting[setting] = _strings(sub.get("set", []),
-                                                 f"{where} setting {setting!r}", "set", path)
-        for text in spec.overrides + [t for v in spec.per_setting.values() for t in v]:
-            keys, _ = mission_mod.parse_override(text)
-            if keys[0] == "mission" and keys[1] in FIXED_KEYS:
-                raise MissionError(where, "set", f"{text!r}: the evaluation sets mission."
-                                   f"{keys[1]} itself (use the suite's settings, uncertainty, "
-                                   "scenarios and seed)", file=path)
-        suite.methods.append(spec)
-    return suite
 
 
 # -- jobs ---------------------------------------------------------------------------------------
@@ -370,8 +221,25 @@ def plan_key(jobs: list[Job], chunk_size: int) -> str:
                                      for j in jobs]})
 
 
-def unit_count(jobs: list[Job], chunk_size: int) -> int:
-    return len(job_units(jobs, chunk_size))
+def eval_plan(suites: list[Suite], jobs: list[Job], chunk_size: int = DEFAULT_CHUNK,
+              describe: dict[str, Any] | None = None) -> Plan:
+    """`ata eval`'s plan: each job's scenarios in chunks of `chunk_size`, a work unit each."""
+    return Plan(missions=[j.mission for j in jobs], registries=[j.session.registry for j in jobs],
+                chunks=[fixed_chunks(scenario_ids(j.mission), chunk_size) for j in jobs],
+                key=plan_key(jobs, chunk_size), describe=describe or {},
+                unit_name="work units", title=f"eval: {len(jobs)} (method, setting, level)",
+                default_out=lambda: default_out_dir(suites))
+
+
+def write_done(suites: list[Suite], jobs: list[Job], chunk_size: int,
+               arguments: dict[str, Any], done: Done) -> EvalResult:
+    """The evaluation's rows from its finished plan (`execute.run_plan`), written to its folder
+    with the command's `arguments` (where it ran and the units resumed added)."""
+    result = eval_result(jobs, [u.job for u in job_units(jobs, chunk_size)], done.parts,
+                         done.wall_s)
+    arguments = {**arguments, "executor": done.executor, "resumed_units": done.resumed}
+    write_eval(done.out_dir, suites, jobs, result, arguments)
+    return result
 
 
 def evaluate(jobs: list[Job], executor: Executor, *, chunk_size: int = DEFAULT_CHUNK,
@@ -379,18 +247,25 @@ def evaluate(jobs: list[Job], executor: Executor, *, chunk_size: int = DEFAULT_C
              progress: Callable[[float], None] | None = None,
              log: runlog.RunLog | None = None) -> EvalResult:
     """Run every job's scenarios on `executor` (`ata.experiment.units`, the runner of `ata run`
-    too); `progress(n)` hears of n more scenarios done.
+    too), in memory; `progress(n)` hears of n more scenarios done.
 
     :param log: the output folder's record: units it holds are not run again, and each unit
         is recorded there durably as it finishes.
     """
     units = job_units(jobs, chunk_size, cache, executor)
     parts, wall = run_units(units, executor, log=log, progress=progress)
+    return eval_result(jobs, [u.job for u in units], parts, wall)
+
+
+def eval_result(jobs: list[Job], unit_jobs: list[int], parts: list[dict[str, Any]],
+                wall: float) -> EvalResult:
+    """The rows of every unit's results (`parts`, unit i of job `unit_jobs[i]`), in report
+    order, with the wall times and the warnings."""
     method_wall: dict[str, float] = {}
     warnings: list[str] = []
     rows: list[dict[str, Any]] = []
-    for unit, part in zip(units, parts):
-        job = jobs[unit.job]
+    for j, part in zip(unit_jobs, parts):
+        job = jobs[j]
         method_wall[job.method] = method_wall.get(job.method, 0.0) + part["wall_s"]
         warnings += [f"{job.method} ({job.setting}, {job.level}): {w}" for w in part["warnings"]]
         rows += _rows(job, part)

@@ -16,6 +16,8 @@ import csv
 import hashlib
 import json
 import os
+import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +27,10 @@ from ata.core.errors import MissionError
 
 PLAN = "plan.json"
 UNITS = "units.jsonl"
+LOCK = ".ata-lock"
+"""Held (an advisory lock) by the run writing the folder; it names that run."""
+TRAINING_FILES = ("log.csv", "checkpoint.pt", "best.pt")
+"""What marks a training run's folder (`ata.training.TrainRun`)."""
 
 
 def plan_key(parts: Any) -> str:
@@ -165,3 +171,74 @@ def parts_and_todo(log: RunLog | None, units: int) -> tuple[list[Any], list[int]
     for i, part in log.done.items():
         parts[i] = part
     return parts, log.missing()
+
+
+class FolderLock:
+    """The right to write an output folder, held by one run at a time: two runs on one --out at
+    once would mix their files. An advisory lock (flock) on ``.ata-lock`` in the folder, which
+    the kernel drops when the process ends, however it ends; the file names the holder for the
+    refusal and is removed when the run lets go. Where flock is missing (not POSIX), no lock.
+    """
+
+    def __init__(self, out_dir: str | Path):
+        self.path = Path(out_dir) / LOCK
+        self._fd: int | None = None
+
+    def acquire(self) -> "FolderLock":
+        try:
+            import fcntl
+        except ImportError:          # not POSIX
+            return self
+        while True:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                os.close(fd)
+                raise MissionError("--out", None, f"{self.path.parent} is in use by another "
+                                   f"run ({self._holder()}); wait for it to end, or choose "
+                                   "another folder") from None
+            # the holder before us may have removed the file as we opened it: lock the file
+            # that is there now, or a third run could hold another one at the same time
+            try:
+                same = os.fstat(fd).st_ino == os.stat(self.path).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            os.close(fd)
+        os.ftruncate(fd, 0)
+        os.write(fd, json.dumps({"pid": os.getpid(), "command": " ".join(sys.argv),
+                                 "started": time.strftime("%Y-%m-%d %H:%M:%S")}).encode())
+        self._fd = fd
+        return self
+
+    def _holder(self) -> str:
+        try:
+            info = json.loads(self.path.read_text(encoding="utf-8"))
+            return f"pid {info['pid']}, started {info['started']}: {info['command']}"
+        except (OSError, ValueError, KeyError, TypeError):
+            return "its details are not written yet"
+
+    def release(self) -> None:
+        if self._fd is None:
+            return
+        self.path.unlink(missing_ok=True)        # before the unlock: no one locks a stale file
+        os.close(self._fd)
+        self._fd = None
+
+    def __enter__(self) -> "FolderLock":
+        return self.acquire()
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+
+def refuse_training_folder(out_dir: str | Path) -> None:
+    """A MissionError when `out_dir` is a training run's folder: a run or an evaluation there
+    would overwrite its resolved mission, and `ata train --resume` would then fail."""
+    path = Path(out_dir)
+    held = [n for n in TRAINING_FILES if (path / n).exists()]
+    if held:
+        raise MissionError("--out", None, f"{path} is the folder of a training run "
+                           f"({', '.join(held)}); choose another folder")

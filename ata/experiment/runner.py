@@ -7,8 +7,6 @@ import contextlib
 import dataclasses
 import json
 import math
-import os
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -23,10 +21,11 @@ from ata.core.kernel import Simulation
 from ata.core.mission import Mission
 from ata.core.registry import Register, collect_components, get_plugin_manager, providers
 from ata.experiment import runlog
-from ata.experiment.executors import Executor, ProcessExecutor, SerialExecutor
-from ata.experiment.heldout import EVAL_FIRST_SCENARIO
-from ata.experiment.inputs import file_digest
-from ata.experiment.units import chunks_of, make_units, run_units
+from ata.experiment.execute import Done, Plan, stamped_folder
+from ata.experiment.units import RUN_CHUNK, chunks_of, make_units, run_units
+from ata.runtime.executors import Executor, ProcessExecutor, SerialExecutor
+from ata.runtime.heldout import EVAL_FIRST_SCENARIO
+from ata.runtime.inputs import file_digest
 
 BUILTIN_MISSION = Path(__file__).resolve().parent.parent / "missions" / "default.toml"
 """`ata run`'s default: the full ATA-HRL method with its shipped weights."""
@@ -67,10 +66,28 @@ class Session:
         return out
 
 
+def mission_file(spec: str | Path | None) -> str:
+    """The file of a mission argument: ``builtin:NAME`` is ata/missions/NAME.toml (as in
+    suites), nothing the built-in default mission, anything else a path."""
+    if not spec:
+        return str(BUILTIN_MISSION)
+    spec = str(spec)
+    if spec.startswith("builtin:"):
+        name = spec.split(":", 1)[1]
+        path = BUILTIN_MISSION.parent / f"{name}.toml"
+        if not name or "/" in name or not path.is_file():
+            known = ", ".join(f"builtin:{p.stem}" for p in sorted(BUILTIN_MISSION.parent.glob(
+                "*.toml")))
+            raise MissionError("", None, f"no built-in mission {name!r}; there are: {known}",
+                               file=spec)
+        return str(path)
+    return spec
+
+
 def load_session(path: str | None = None, overrides: list[str] | None = None,
                  plugins: list[str] | None = None, extra: tuple = ()) -> Session:
     """Read (or take the built-in) mission, load the plugins it needs, and validate it."""
-    source = str(path) if path else str(BUILTIN_MISSION)
+    source = mission_file(path)
     raw = mission_mod.read_toml(source)
     raw = mission_mod.apply_overrides(raw, overrides or [])   # its errors name --set
     # a component named in [components] loads its plugin (lazy registration); these are the
@@ -174,6 +191,35 @@ def plan_key(session: Session, chunks: list[np.ndarray]) -> str:
                             "chunks": [[int(c[0]), int(c.size)] for c in chunks]})
 
 
+def mission_plan(session: Session, workers: int | None = None,
+                 chunk_size: int = RUN_CHUNK) -> Plan:
+    """`ata run`'s plan: one job, the mission's scenarios in batches (`units.chunks_of`)."""
+    m = session.mission
+    chunks = chunks_of(m, workers or m.settings.workers, chunk_size)
+    return Plan(missions=[m], registries=[session.registry], chunks=[chunks],
+                key=plan_key(session, chunks), unit_name="batches",
+                describe={"mission": m.settings.name, "scenarios": m.settings.scenarios},
+                title=f"{m.settings.name}: {m.settings.scenarios} scenarios",
+                default_out=lambda: default_out_dir(m))
+
+
+def write_done(session: Session, done: Done) -> RunResult:
+    """The run's result from its finished plan (`execute.run_plan`), written to its folder."""
+    result = run_result(done.parts, done.wall_s)
+    write_run(done.out_dir, session, result)
+    return result
+
+
+def run_result(parts: list[dict[str, Any]], wall_s: float) -> RunResult:
+    """One RunResult of the units' results, in unit order."""
+    merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]
+              if k not in ("warnings", "wall_s")}
+    return RunResult(scenario=merged["scenario"], total=merged["total"],
+                     upper_bound=merged["upper_bound"], reallocations=merged["reallocations"],
+                     metrics={k[2:]: v for k, v in merged.items() if k.startswith("m:")},
+                     wall_s=wall_s, warnings=[w for p in parts for w in p["warnings"]])
+
+
 def run_mission(session: Session, progress: Callable[[float], None] | None = None,
                 workers: int | None = None, log: runlog.RunLog | None = None,
                 chunks: list[np.ndarray] | None = None,
@@ -185,7 +231,7 @@ def run_mission(session: Session, progress: Callable[[float], None] | None = Non
     gives the same per-scenario numbers. Without `executor`, one worker runs the chunks here,
     several run them on a process executor. With `log` (`ata run`'s output folder), chunks it
     holds are not run again and each chunk is recorded there as it finishes. `cache` is the
-    run's cache folder (`ata.experiment.cache`; None: none).
+    run's cache folder (`ata.runtime.cache`; None: none).
     """
     mission = session.mission
     workers = workers or mission.settings.workers
@@ -197,12 +243,7 @@ def run_mission(session: Session, progress: Callable[[float], None] | None = Non
         found = make_units([mission], [chunks], cache=cache, executor=executor,
                            registries=[session.registry])
         parts, wall = run_units(found, executor, log=log, progress=progress)
-    merged = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]
-              if k not in ("warnings", "wall_s")}
-    return RunResult(scenario=merged["scenario"], total=merged["total"],
-                     upper_bound=merged["upper_bound"], reallocations=merged["reallocations"],
-                     metrics={k[2:]: v for k, v in merged.items() if k.startswith("m:")},
-                     wall_s=wall, warnings=[w for p in parts for w in p["warnings"]])
+    return run_result(parts, wall)
 
 
 def mean_ci(values: np.ndarray, z: float = 1.959964) -> tuple[float, float]:
@@ -228,6 +269,26 @@ def summarize(result: RunResult) -> dict[str, Any]:
     return out
 
 
+def summary_rows(session: Session, result: RunResult) -> list[tuple[str, str]]:
+    """`ata run`'s summary of a run: (what, value) lines."""
+    m, s = session.mission, summarize(result)
+    first = m.settings.first_scenario
+    ci = (f" ± {s['score_ci95']:.1f} (mean ± 95% CI half-width)" if math.isfinite(
+        s["score_ci95"]) else " (one scenario: no confidence interval)")
+    return [("method", m.method_label()),
+            ("team", f"setting {m.settings.setting}: {m.sizes.humans} humans, "
+                     f"{m.sizes.robots} robots, {m.sizes.tasks} POIs"),
+            ("uncertainty", f"{m.settings.uncertainty} (fatigue variance {m.fatigue_variance}, "
+                            f"event probability {m.event_probability})"),
+            ("scenarios", f"{s['scenarios']} (ids {first}..{first + s['scenarios'] - 1}, root "
+                          f"seed {m.settings.seed})"),
+            ("team performance", f"{s['score_mean']:.1f}{ci}"),
+            ("fraction of U", f"{s['fraction_of_u']:.3f} (U: the capacity-free bound)"),
+            ("POIs classified", f"{100 * s.get('classified_share_mean', float('nan')):.1f}%"),
+            ("reallocations", f"{s['reallocations_mean']:.2f} per scenario"),
+            ("wall time", f"{s['wall_s']:.1f} s")]
+
+
 def write_run(out_dir: str | Path, session: Session, result: RunResult) -> Path:
     """Write results.csv, summary.json, the resolved mission and the plugin versions."""
     out = Path(out_dir)
@@ -245,42 +306,3 @@ def write_run(out_dir: str | Path, session: Session, result: RunResult) -> Path:
 def default_out_dir(mission: Mission, prefix: str = "") -> Path:
     """A new folder runs/[PREFIX]NAME-TIME for a run of the mission."""
     return stamped_folder(f"{prefix}{mission.settings.name}")
-
-
-def runs_root() -> Path:
-    """Where output folders go by default: $ATA_RUNS, else runs/."""
-    return Path(os.environ.get("ATA_RUNS", "runs"))
-
-
-def stamped_folder(label: str) -> Path:
-    """A new folder runs/LABEL-TIME, created now: two runs started in the same second get
-    LABEL-TIME and LABEL-TIME-2."""
-    return new_folder(runs_root() / f"{label}-{time.strftime('%Y%m%d-%H%M%S')}")
-
-
-def new_folder(path: Path) -> Path:
-    """Create path, or path-2, path-3 ... if it exists (atomically: mkdir fails on a taken name)."""
-    prepare_out_dir(path.parent)
-    for n in range(1, 10_000):
-        candidate = path if n == 1 else path.with_name(f"{path.name}-{n}")
-        try:
-            candidate.mkdir()
-            return candidate
-        except FileExistsError:
-            continue
-    raise MissionError("--out", None, f"no free folder name like {path}")
-
-
-def prepare_out_dir(path: Path) -> Path:
-    """Create the output folder and check that it can be written, before any work is done; a
-    path under a file or a folder without write permission is one clear error."""
-    path = Path(path)
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-        probe = path / f".ata-write-check-{os.getpid()}"
-        probe.write_bytes(b"")
-        probe.unlink()
-    except OSError as exc:
-        raise MissionError("--out", None, f"cannot write to {path}: "
-                           f"{exc.strerror or exc}") from None
-    return path

@@ -22,8 +22,12 @@ from ata.core.kernel import Simulation
 from ata.core.mission import Mission
 from ata.core.registry import Register, collect_components, get_plugin_manager
 from ata.experiment import runlog
-from ata.experiment.cache import run_cache
-from ata.experiment.executors import Executor
+from ata.runtime.cache import run_cache
+from ata.runtime.executors import Executor
+
+RUN_CHUNK = 100
+"""`ata run`'s batches hold at most this many scenarios, so that a long run is saved as it goes
+(each batch is recorded as it ends); bigger batches step faster (docs/evaluation.md)."""
 
 
 def run_batch(mission: Mission, registry: Register, scenario_ids: np.ndarray,
@@ -71,11 +75,13 @@ def scenario_ids(mission: Mission) -> np.ndarray:
     return s.first_scenario + np.arange(s.scenarios, dtype=np.int64)
 
 
-def chunks_of(mission: Mission, workers: int) -> list[np.ndarray]:
-    """`ata run`'s chunking: the scenario ids in batches of at most batch_size; with several
-    workers, small enough that each worker gets one."""
+def chunks_of(mission: Mission, workers: int, chunk_size: int | None = None) -> list[np.ndarray]:
+    """`ata run`'s chunking: the scenario ids in batches of at most batch_size (and at most
+    `chunk_size`, when given); with several workers, small enough that each worker gets one."""
     ids = scenario_ids(mission)
     size = mission.settings.batch_size
+    if chunk_size is not None:
+        size = min(size, chunk_size)
     if workers > 1:
         size = max(1, min(size, -(-ids.size // workers)))
     return fixed_chunks(ids, size)

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ata.experiment import runner
+from ata.experiment.execute import runs_root
 from ata.core.errors import MissionError
 from ata.viz import draw
 from ata.experiment.units import scenario_ids
@@ -78,7 +79,7 @@ def show(target: str | None, scenario: int | None, overrides: list[str] | None =
     episode = replay(m, session.registry, scenario)
     if out is None:
         out = (run_dir / f"show-{scenario}" if run_dir is not None else
-               runner.runs_root() / f"show-{m.settings.name}-{scenario}")
+               runs_root() / f"show-{m.settings.name}-{scenario}")
     written = draw.write_figures(episode, out)
     checked = run_dir is not None and not overrides
     score = run_score(run_dir, scenario) if checked else None

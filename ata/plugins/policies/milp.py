@@ -29,8 +29,8 @@ from scipy.optimize import LinearConstraint, milp
 from ata import hookimpl
 from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext, SimState
-from ata.experiment.cache import cache_dir
-from ata.experiment.executors import ProcessExecutor
+from ata.runtime.cache import cache_dir
+from ata.runtime.executors import ProcessExecutor
 from ata.model import tables
 from ata.model.greedy_planner import GreedySettings, plan
 from ata.model.team import CAPTURE_S, FATIGUE_FLOOR, HumanConstants, RobotConstants
@@ -298,7 +298,7 @@ def _solve_chunk(args: tuple) -> list[Solution]:
 # A scenario's MILP depends on its ScenarioData (I, the working hours at t = 0, the horizon and
 # the uncertainty level) and the [milp] settings alone, so its solution can be kept on disk and
 # reused by the next evaluation: under milp/ in the run's cache folder
-# (`ata.experiment.cache`), when one is set (`ata eval` sets one).
+# (`ata.runtime.cache`), when one is set (`ata eval` sets one).
 
 CACHE_FORMAT = 1
 """Bumped when the cached record changes shape."""

@@ -1,0 +1,181 @@
+"""One run path under `ata run` and `ata eval`: a plan's work units run into an output folder.
+
+`run_plan` does, for both commands alike: the executor (made and checked first), the output
+folder (made and checked writable; a training run's folder refused; locked against a second
+run at once), its durable record (`runlog.RunLog`: resumed where it stopped, a folder of another
+plan refused unless forced), the resume message, the progress, the units themselves
+(`units.run_units`), Ctrl-C (`Interrupted`, saying what was saved), and the writing of the
+results while the folder is still held. The commands differ only in their `Plan` (runner's
+`mission_plan`, evaluate's `eval_plan`) and in what they write at the end.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, ContextManager, TypeVar
+
+import numpy as np
+
+from ata.core.errors import MissionError
+from ata.core.mission import Mission
+from ata.core.registry import Register
+from ata.experiment import runlog
+from ata.experiment.units import make_units, run_units
+from ata.runtime.executors import make_executor
+
+T = TypeVar("T")
+Advance = Callable[[float], None]
+ProgressFactory = Callable[[str, int, int], ContextManager[Advance]]
+"""``progress(title, total scenarios, scenarios done before)``: a context whose value is told
+of n more scenarios done (the CLI's progress bar)."""
+
+
+@dataclass
+class Plan:
+    """The work of one output folder: each job's mission and its chunks of scenario ids (a work
+    unit each, in order), and what identifies the plan.
+
+    :param key: the digest of everything that decides the rows (`runlog.plan_key`): a folder
+        recorded under another key is another plan's.
+    :param describe: what the plan is, for people (plan.json).
+    :param unit_name: how messages name the units ("batches", "work units").
+    :param title: the progress bar's label.
+    :param default_out: makes the output folder when none is given.
+    """
+
+    missions: list[Mission]
+    registries: list[Register]
+    chunks: list[list[np.ndarray]]
+    key: str
+    describe: dict[str, Any]
+    unit_name: str
+    title: str
+    default_out: Callable[[], Path]
+
+    @property
+    def units(self) -> int:
+        return sum(len(c) for c in self.chunks)
+
+    @property
+    def scenarios(self) -> int:
+        return sum(int(ids.size) for chunks in self.chunks for ids in chunks)
+
+
+@dataclass
+class Done:
+    """A plan run to its end: every unit's results in unit order, for the command to write.
+
+    :param resumed: the units found done in the folder's record.
+    :param executor: where the units ran (`Executor.describe`).
+    """
+
+    out_dir: Path
+    parts: list[dict[str, Any]]
+    wall_s: float
+    resumed: int
+    executor: dict[str, Any]
+
+
+class Interrupted(Exception):
+    """Ctrl-C stopped a plan: the message says what is saved and how to go on."""
+
+
+def runs_root() -> Path:
+    """Where output folders go by default: $ATA_RUNS, else runs/."""
+    return Path(os.environ.get("ATA_RUNS", "runs"))
+
+
+def stamped_folder(label: str) -> Path:
+    """A new folder runs/LABEL-TIME, created now: two runs started in the same second get
+    LABEL-TIME and LABEL-TIME-2."""
+    return new_folder(runs_root() / f"{label}-{time.strftime('%Y%m%d-%H%M%S')}")
+
+
+def new_folder(path: Path) -> Path:
+    """Create path, or path-2, path-3 ... if it exists (atomically: mkdir fails on a taken name)."""
+    prepare_out_dir(path.parent)
+    for n in range(1, 10_000):
+        candidate = path if n == 1 else path.with_name(f"{path.name}-{n}")
+        try:
+            candidate.mkdir()
+            return candidate
+        except FileExistsError:
+            continue
+    raise MissionError("--out", None, f"no free folder name like {path}")
+
+
+def prepare_out_dir(path: Path) -> Path:
+    """Create the output folder and check that it can be written, before any work is done; a
+    path under a file or a folder without write permission is one clear error."""
+    path = Path(path)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        probe = path / f".ata-write-check-{os.getpid()}"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        raise MissionError("--out", None, f"cannot write to {path}: "
+                           f"{exc.strerror or exc}") from None
+    return path
+
+
+def open_out_dir(path: str | Path) -> Path:
+    """An output folder given by the user: refused if a training run's, then made and checked
+    writable (before any work)."""
+    runlog.refuse_training_folder(path)
+    return prepare_out_dir(Path(path))
+
+
+def resume_message(log: runlog.RunLog, out_dir: Path, what: str) -> str | None:
+    """One line when an output folder's record already holds finished work."""
+    if log.resumed == log.units:
+        return f"resuming {out_dir}: all {log.units} {what} were done before"
+    if log.resumed:
+        return (f"resuming {out_dir}: {log.resumed} of {log.units} {what} were done before; "
+                f"running the other {log.units - log.resumed}")
+    return None
+
+
+def run_plan(plan: Plan, write: Callable[[Done], T], out: str | Path | None = None, *,
+             executor: str = "serial", workers: int | None = None, address: str | None = None,
+             cache: str | Path | None = None, force: bool = False,
+             notify: Callable[[str], None] | None = None,
+             progress: ProgressFactory | None = None) -> T:
+    """Run the plan's missing units into `out` (default: `plan.default_out()`), then
+    `write(done)` while the folder is still held; its value is returned.
+
+    :param executor: serial, process or ray (`ata.runtime.executors.make_executor`, with
+        `workers` and `address`).
+    :param cache: the cache folder of results that depend on the scenario alone (None: none).
+    :param force: start over in a folder that holds another plan's results.
+    :param notify: told of messages for the user (resuming).
+    :raises Interrupted: on Ctrl-C, once the units under way are stopped.
+    """
+    with contextlib.ExitStack() as stack:
+        pool = stack.enter_context(make_executor(executor, workers, address))
+        out_dir = open_out_dir(out) if out is not None else plan.default_out()
+        stack.enter_context(runlog.FolderLock(out_dir))
+        log = runlog.RunLog(out_dir, plan.key, plan.units, force=force, describe=plan.describe)
+        stack.callback(log.close)
+        message = resume_message(log, out_dir, plan.unit_name)
+        if message and notify is not None:
+            notify(message)
+        units = make_units(plan.missions, plan.chunks, cache=cache, executor=pool,
+                           registries=plan.registries)
+        before = sum(int(np.asarray(p["scenario"]).size) for p in log.done.values())
+        bar = progress(plan.title, plan.scenarios, before) if progress is not None \
+            else contextlib.nullcontext(None)
+        try:
+            with bar as advance:
+                parts, wall = run_units(units, pool, log=log, progress=advance)
+        except KeyboardInterrupt:
+            raise Interrupted(f"interrupted: {log.saved()} of {log.units} {plan.unit_name} are "
+                              f"saved in {out_dir}; run the same command with --out {out_dir} "
+                              "to go on") from None
+        log.close()
+        return write(Done(out_dir=out_dir, parts=parts, wall_s=wall, resumed=log.resumed,
+                          executor=pool.describe()))

@@ -1,0 +1,165 @@
+"""What the commands draw on the terminal: consoles made per command, the progress bar of `ata
+run` and `ata eval`, tables with every value whole at any width (`tables.layout`), messages."""
+
+from __future__ import annotations
+
+import contextlib
+from typing import Any, Iterator
+
+from rich.console import Console
+from rich.markup import escape
+from rich.progress import (BarColumn, Progress, ProgressColumn, TaskProgressColumn, TextColumn,
+                           TimeElapsedColumn, TimeRemainingColumn)
+from rich.table import Column, Table
+from rich.text import Text
+
+from ata.experiment.tables import layout
+
+
+def help_without_type_tags() -> None:
+    """Recent typer prints a Python type after every parameter in help pages (``<bool>`` after
+    a flag, ``<list[str]>`` after an argument). Our parameters name their values in their
+    metavars (FILE, DIR, N) and flags take none: print no type tag but an option's metavar."""
+    from typer import core
+
+    for cls in (getattr(core, "TyperArgument", None), getattr(core, "TyperOption", None)):
+        if cls is not None and hasattr(cls, "display_type_rich"):
+            cls.display_type_rich = lambda self, ctx: (
+                None if getattr(self, "is_flag", False) or isinstance(self, core.TyperArgument)
+                else self.metavar)
+
+
+class LazyConsole:
+    """A rich console made at first use in each command, so that it sees the terminal (and
+    COLUMNS) of the invocation, not of the import."""
+
+    def __init__(self, **kwargs):
+        self.kwargs = kwargs
+
+    def __getattr__(self, name):
+        return getattr(Console(**self.kwargs), name)
+
+
+console = LazyConsole()
+err_console = LazyConsole(stderr=True)
+
+
+def note(text: str) -> None:
+    """A message for the user on stderr (resuming, interrupted, notes)."""
+    err_console.print(escape(text), highlight=False, soft_wrap=True)
+
+
+def warn(warnings: list[str]) -> None:
+    for warning in warnings:
+        err_console.print(f"[yellow]warning:[/] {escape(warning)}", highlight=False)
+
+
+class SpeedColumn(ProgressColumn):
+    """Scenarios simulated per second."""
+
+    def render(self, task) -> Text:
+        return Text(f"{task.speed or 0:,.1f} scenarios/s", style="cyan")
+
+
+def progress_bar(quiet: bool):
+    """The progress bar of `ata run` and `ata eval` on stderr (an `execute.ProgressFactory`)."""
+
+    @contextlib.contextmanager
+    def bar(title: str, total: int, done: int) -> Iterator[Any]:
+        columns = [TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
+                   TextColumn("{task.completed:,.0f}/{task.total:,.0f}"), SpeedColumn(),
+                   TimeElapsedColumn(), TimeRemainingColumn()]
+        with Progress(*columns, console=Console(stderr=True), disable=quiet) as progress:
+            task = progress.add_task(escape(title), total=total, completed=done)
+            yield lambda n: progress.advance(task, n)
+            progress.update(task, completed=total)   # no float shortfall
+
+    return bar
+
+
+@contextlib.contextmanager
+def training_bar(title: str, trainer: Any, quiet: bool) -> Iterator[Any]:
+    """`ata train`'s progress bar on stderr; its value is told of each log.csv row (the status
+    beside the bar), or of None to catch up with the trainer's steps."""
+    # the bar and the times keep their width; the status gives way (cut short) at 80 columns
+    columns = [TextColumn("[bold]{task.description}",
+                          table_column=Column(no_wrap=True, min_width=len(title))),
+               BarColumn(bar_width=16, table_column=Column(no_wrap=True, min_width=16)),
+               TaskProgressColumn(table_column=Column(no_wrap=True, min_width=4)),
+               TimeElapsedColumn(table_column=Column(no_wrap=True, min_width=7)),
+               TimeRemainingColumn(table_column=Column(no_wrap=True, min_width=7)),
+               TextColumn("{task.fields[status]}",
+                          table_column=Column(no_wrap=True, overflow="ellipsis", ratio=1))]
+    with Progress(*columns, console=Console(stderr=True), disable=quiet) as progress:
+        task = progress.add_task(title, total=trainer.total_steps(), status="")
+
+        def on_row(row: dict | None) -> None:
+            if row is None:
+                progress.update(task, completed=trainer.done_steps())
+                return
+            parts = [f"{row['phase']} {row['step']}"]
+            for key, label in (("episodes_per_s", "ep/s"), ("mean_score", "score"),
+                               ("epsilon", "eps"), ("eval_score", "held-out"),
+                               ("aux_fatigue_mse", "fatigue mse")):
+                if row.get(key):
+                    parts.append(f"{label} {row[key]}")
+            progress.update(task, completed=trainer.done_steps(), status=" | ".join(parts))
+
+        yield on_row
+
+
+def table(title: str, header: list[str], rows: list[list[str]]) -> None:
+    """A table with every value whole at the terminal's width: split into several, each with
+    the first column, where it is too wide; long headers wrap between words."""
+    parts = layout(header, rows, console.width)
+    for k, part in enumerate(parts):
+        more = f" ({k + 1} of {len(parts)})" if len(parts) > 1 else ""
+        drawn = Table(title=escape(title + more))
+        for i, width in zip(part.columns, part.widths):
+            drawn.add_column(escape(header[i]), justify="left" if i == 0 else "right",
+                             width=width, overflow="fold")
+        for row in rows:
+            drawn.add_row(*[escape(row[i]) for i in part.columns])
+        console.print(drawn)
+
+
+def key_values(title: str, rows: list[tuple[str, str]]) -> None:
+    """A key per line (`ata run`'s summary): readable at 80 columns."""
+    from rich import box
+
+    drawn = Table(title=escape(title), box=box.SIMPLE, show_header=False, title_justify="left")
+    drawn.add_column("what", style="bold", no_wrap=True)
+    drawn.add_column("value", overflow="fold")
+    for key, value in rows:
+        drawn.add_row(escape(key), escape(value))
+    console.print(drawn)
+
+
+def report_tables(report) -> None:
+    """An evaluation report's tables, one per (setting, level) (`report.table_rows`)."""
+    from ata.experiment.report import table_rows, title
+
+    for setting, level in report.groups():
+        table(title(setting, level), *table_rows(report, setting, level, short=True))
+
+
+def show_summary(shown) -> None:
+    """What `ata show` replayed (an `ata.viz.show` result): the scenario, its score and events,
+    whether the run folder's score was met again, and the files written."""
+    ep = shown.episode
+    changing = sum(1 for _, n in ep.reallocations if n)
+    failures = int((ep.fail_time <= ep.horizon_s).sum())
+    console.print(f"{escape(ep.mission)}: scenario {ep.scenario} (seed {ep.seed}): score "
+                  f"{ep.score:.1f} of U {ep.upper_bound:.1f}; {len(ep.reallocations)} "
+                  f"reallocations ({changing} changing POIs), {failures} robot failures",
+                  highlight=False)
+    if shown.run_score is not None:
+        if shown.run_score == ep.score:
+            console.print(f"the same score as the run: {escape(str(shown.results))}",
+                          highlight=False)
+        else:
+            err_console.print(f"[yellow]warning:[/] the replay scored {ep.score!r}, the run "
+                              f"{shown.run_score!r} ({escape(str(shown.results))}): not the "
+                              "code or plugin versions that made the run", highlight=False)
+    console.print("wrote " + ", ".join(escape(str(p)) for p in shown.written), highlight=False)
+

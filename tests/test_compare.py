@@ -1,0 +1,348 @@
+"""Result folders read as one (a later folder's cells replacing an earlier one's), `ata compare`
+(paired differences on any column, the scenarios a CI needs, column means; one folder or two,
+evaluations or plain runs), `ata report --markdown` (the tables of docs/RESULTS.md), and every
+table whole at 80 columns. Exact answers on small hand-made folders."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from _support import assert_user_error, flat
+from ata.cli import app
+from ata.core.errors import MissionError
+from ata.experiment import compare as cmp
+from ata.experiment import report as rep
+from ata.experiment.evaluate import CORE_COLUMNS
+from ata.experiment.results import bootstrap_ci, read_results
+
+HEADER = CORE_COLUMNS + ["expected_score"]
+
+
+def folder(path: Path, rows: list[tuple], pairs: list | None = None) -> Path:
+    """An evaluation folder: rows (method, setting, level, scenario, score[, expected]); the
+    upper bound is 100, so the fraction of U is score / 100."""
+    path.mkdir(parents=True)
+    with open(path / "results.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(HEADER)
+        for m, s, lv, sc, score, *expected in rows:
+            w.writerow([m, s, lv, sc, 0, score, 100.0, score / 100.0, 0.5, sc % 3, 0.1,
+                        expected[0] if expected else score])
+    meta = {"rows": len(rows)}
+    if pairs is not None:
+        meta["suites"] = [{"path": "s.toml", "name": "s",
+                           "content": {"suite": {"pairs": pairs}}}]
+    (path / "eval.json").write_text(json.dumps(meta))
+    return path
+
+
+def run_folder(path: Path, name: str, scores: list[float], uncertainty: str = "medium") -> Path:
+    """A plain `ata run` folder: results.csv without method columns, and its resolved mission."""
+    path.mkdir(parents=True)
+    with open(path / "results.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["scenario", "score", "upper_bound", "fraction_of_u", "reallocations"])
+        for i, score in enumerate(scores):
+            w.writerow([i, score, 100.0, score / 100.0, i])
+    (path / "mission.resolved.toml").write_text(
+        f'[mission]\nname = "{name}"\nsetting = "a"\nuncertainty = "{uncertainty}"\n'
+        'seed = 0\n')
+    return path
+
+
+def cli80(*args) -> tuple[int, str]:
+    result = CliRunner(env={"COLUMNS": "80"}).invoke(app, [str(a) for a in args])
+    return result.exit_code, result.output
+
+
+# -- several folders read as one ------------------------------------------------------------------
+def test_a_later_folder_replaces_its_cells_in_place(cli, tmp_path):
+    base = folder(tmp_path / "base", [("A", "a", "low", i, 10.0) for i in range(3)]
+                  + [("A", "b", "low", i, 20.0) for i in range(3)]
+                  + [("B", "b", "low", i, 30.0) for i in range(3)])
+    new = folder(tmp_path / "new", [("A", "b", "low", i, 25.0 + i) for i in range(2)]
+                 + [("C", "a", "low", 0, 1.0)])
+    res = read_results([base, new])
+    c = res.columns
+    got = list(zip(c["method"], c["setting"], c["scenario"].tolist(), c["score"].tolist()))
+    assert got == [("A", "a", 0, 10.0), ("A", "a", 1, 10.0), ("A", "a", 2, 10.0),
+                   ("A", "b", 0, 25.0), ("A", "b", 1, 26.0),          # the rerun, in place
+                   ("B", "b", 0, 30.0), ("B", "b", 1, 30.0), ("B", "b", 2, 30.0),
+                   ("C", "a", 0, 1.0)]                                 # a new cell: added
+    assert res.replaced == [("A", "b", "low")]
+    assert res.methods == ["A", "B", "C"]
+    out = cli("report", base, new, "--no-figures", "--reference", "A")
+    assert out.exit_code == 0, out.output
+    assert "cells taken from a later folder: A (b, low)" in flat(out.output)
+    assert "| A | 2 | 25.5 [25.0, 26.0] |" in (base / "report.md").read_text()
+    assert "Cells taken from a later folder read together with the first: A (b, low)." in \
+        (base / "report.md").read_text()
+
+
+def test_a_folder_named_twice_or_a_row_twice_is_an_error(cli, tmp_path):
+    one = folder(tmp_path / "one", [("A", "a", "low", 0, 1.0)])
+    assert_user_error(cli("report", one, one, "--no-figures"), f"error: {one}: is named twice")
+    two = folder(tmp_path / "two", [("A", "a", "low", 0, 1.0), ("A", "a", "low", 0, 2.0)])
+    assert_user_error(cli("compare", two), f"error: {two}: a (method, setting, uncertainty, "
+                                           "scenario) appears twice")
+
+
+@pytest.mark.parametrize("text", ["nan", "inf", "-inf", ""])
+def test_a_score_that_is_not_finite_is_refused(cli, tmp_path, text):
+    path = folder(tmp_path / "ev", [("A", "a", "low", 0, 1.0), ("A", "a", "low", 1, 2.0)])
+    rows = (path / "results.csv").read_text().splitlines()
+    rows[2] = rows[2].replace(",2.0,", f",{text},", 1)
+    (path / "results.csv").write_text("\n".join(rows) + "\n")
+    what = "a finite number"
+    assert_user_error(cli("report", path, "--no-figures"),
+                      f"{path / 'results.csv'}: line 3: score is {text!r}, not {what}")
+
+
+# -- paired differences ---------------------------------------------------------------------------
+GREEDY = [10.0, 20.0, 30.0, 40.0]
+SCORES = {"greedy": GREEDY, "ATA-HRL": [s + 12.5 for s in GREEDY], "w/o.AUX": GREEDY,
+          "random": [15.0, 10.0, 40.0, 20.0]}
+
+
+def suite_folder(path: Path, scores=SCORES, shift: float = 0.0, **kw) -> Path:
+    """SCORES at (a, low) and, 7 points lower, at (b, high); greedy's rows in reverse order."""
+    rows = []
+    for m, values in scores.items():
+        for s, lv, d in (("a", "low", 0.0), ("b", "high", -7.0)):
+            block = [(m, s, lv, 100 + i, v + d + shift, v + d + shift + 1.0)
+                     for i, v in enumerate(values)]
+            rows += block[::-1] if m == "greedy" else block
+    return folder(path, rows, **kw)
+
+
+def test_compare_one_folder_each_method_against_greedy(cli, tmp_path):
+    ev = suite_folder(tmp_path / "ev")
+    tables = cmp.compare(read_results(ev), None, ["score"])
+    assert [(t.setting, t.level, t.what) for t in tables] == [
+        ("a", "low", "method - greedy, paired"), ("b", "high", "method - greedy, paired")]
+    # random - greedy = (15 - 10, 10 - 20, 40 - 30, 20 - 40), in greedy's row order (reversed)
+    lo = bootstrap_ci([-20.0, 10.0, -10.0, 5.0])
+    assert tables[0].header == ["method", "paired", "differing in score",
+                                "score difference [95% CI]"]
+    assert tables[0].rows == [["ATA-HRL", "4", "4", "+12.5 [+12.5, +12.5]"],
+                              ["w/o.AUX", "4", "0", "+0.0 [+0.0, +0.0]"],
+                              ["random", "4", "4",
+                               f"{lo[0]:+.1f} [{lo[1]:+.1f}, {lo[2]:+.1f}]"]]
+    assert tables[1].rows == tables[0].rows                    # the same differences at (b)
+    out = cli("compare", ev, "--base", "ATA-HRL", "--methods", "greedy", "-c", "expected_score")
+    assert out.exit_code == 0, out.output
+    assert "setting a, low uncertainty: method - ATA-HRL, paired" in flat(out.output)
+    assert "│ greedy │ 4 │ 4 │ -12.5 [-12.5, -12.5] │" in flat(out.output)
+    assert_user_error(cli("compare", ev, "--base", "nobody"), "--base: no method 'nobody'")
+    assert_user_error(cli("compare", ev, "-c", "colour"), "--column: no numeric column "
+                      "'colour' in the results of the first folder; columns: score,")
+    assert_user_error(cli("compare", ev, "-c", "method"), "no numeric column 'method'")
+    assert_user_error(cli("compare", ev, ev, ev), "compares one folder")
+    assert_user_error(cli("compare", ev, "--power", "--means"), "--power or --means")
+
+
+def test_compare_two_evaluations_method_by_method(cli, tmp_path):
+    a = suite_folder(tmp_path / "a", shift=2.0)
+    # B lacks ATA-HRL's scenario 103 at (a, low): 3 pairs there
+    rows = [r for r in csv.reader(open(suite_folder(tmp_path / "b0") / "results.csv"))]
+    b = folder(tmp_path / "b", [(r[0], r[1], r[2], int(r[3]), float(r[5]), float(r[11]))
+                                for r in rows[1:] if r[:4] != ["ATA-HRL", "a", "low", "103"]])
+    tables = cmp.compare(read_results(a), read_results(b), ["score", "expected_score"])
+    assert tables[0].what == "A - B, paired"
+    two = "+2.00 [+2.00, +2.00]"                  # below 10: two decimals
+    assert tables[0].rows == [["greedy", "4", "4", two, two], ["ATA-HRL", "3", "3", two, two],
+                              ["w/o.AUX", "4", "4", two, two], ["random", "4", "4", two, two]]
+    assert tables[1].rows[1][:2] == ["ATA-HRL", "4"]
+    # each method of A against B's greedy
+    tables = cmp.compare(read_results(a), read_results(b), ["score"], base="greedy",
+                         methods=["ATA-HRL", "greedy"])
+    assert tables[0].what == "A's method - B's greedy, paired"
+    assert tables[0].rows == [["greedy", "4", "4", "+2.0 [+2.0, +2.0]"],
+                              ["ATA-HRL - greedy", "4", "4", "+14.5 [+14.5, +14.5]"]]
+    other = folder(tmp_path / "other", [("X", "a", "low", 100, 1.0), ("X", "b", "low", 100, 1.0)])
+    assert_user_error(cli("compare", a, other), "no method of the first folder is in the second")
+
+
+def test_compare_two_plain_runs(cli, tmp_path):
+    a = run_folder(tmp_path / "a", "greedy", [10.0, 20.0, 30.0])
+    b = run_folder(tmp_path / "b", "random", [4.0, 20.0, 0.0])
+    tables = cmp.compare(read_results(a), read_results(b), ["score", "reallocations"])
+    low = bootstrap_ci([6.0, 0.0, 30.0])
+    assert [(t.setting, t.level, t.what) for t in tables] == [("a", "medium", "A - B, paired")]
+    assert tables[0].rows == [["greedy - random", "3", "2",
+                               f"{low[0]:+.1f} [{low[1]:+.1f}, {low[2]:+.1f}]",
+                               "+0.000 [+0.000, +0.000]"]]    # digits per column
+    # two runs at other levels still pair: each folder is one cell
+    c = run_folder(tmp_path / "c", "greedy", [11.0, 21.0, 31.0], uncertainty="high")
+    assert cmp.compare(read_results(c), read_results(a), ["score"])[0].rows == [
+        ["greedy", "3", "3", "+1.00 [+1.00, +1.00]"]]
+    out = cli("report", a, b, "--no-figures", "--reference", "greedy")
+    assert out.exit_code == 0, out.output
+    assert "| random | 3 | 8.0 [" in (a / "report.md").read_text()
+
+
+def test_compare_two_real_runs_of_ata_run(cli, tmp_path):
+    mission = tmp_path / "tiny.toml"
+    mission.write_text('[mission]\nname = "tiny"\nscenarios = 3\n')
+    assert cli("run", mission, "-q", "-o", tmp_path / "a").exit_code == 0
+    assert cli("run", mission, "-q", "-o", tmp_path / "b", "--set",
+               "components.condition=never").exit_code == 0
+    with open(tmp_path / "a" / "results.csv", newline="") as f:
+        moves = [float(r["reallocations"]) for r in csv.DictReader(f)]
+    tables = cmp.compare(read_results(tmp_path / "a"), read_results(tmp_path / "b"),
+                         ["reallocations"])
+    mean, low, high = bootstrap_ci(moves)             # `never` never reallocates
+    d = 1 if max(map(abs, (mean, low, high))) >= 10 else 2
+    assert tables[0].rows == [["tiny", "3", str(sum(m != 0 for m in moves)),
+                               f"{mean:+.{d}f} [{low:+.{d}f}, {high:+.{d}f}]"]]
+
+
+# -- power and means ------------------------------------------------------------------------------
+def test_power_gives_the_scenarios_a_ci_needs_at_the_expected_difference(cli, tmp_path):
+    drawn = [30.0, -10.0, 20.0, 0.0]      # B - A in drawn points, per scenario
+    expected = [2.0, 4.0, 1.0, 5.0]       # and in expected points: mean 3 (low), -3 (high)
+    rows = []
+    for lv, sign in (("low", 1.0), ("high", -1.0)):
+        for i in range(4):
+            rows += [("A", "a", lv, i, 100.0, 90.0),
+                     ("B", "a", lv, i, 100.0 + drawn[i], 90.0 + sign * expected[i])]
+    ev = folder(tmp_path / "ev", rows)
+    sd = float(np.std(drawn, ddof=1))
+    assert cmp.power_needed(np.array(drawn), np.array(expected)) == \
+        pytest.approx((1.959964 * sd / 3.0) ** 2, rel=1e-12)
+    assert cmp.power_needed(np.array(drawn), -np.array(expected)) == math.inf
+    tables = cmp.compare(read_results(ev), None, ["score"], base="A", power=True)
+    assert tables[0].header == ["method", "paired", "score difference ± 1.96 SE (sd)",
+                                "expected_score difference ± 1.96 SE (sd)",
+                                "scenarios for a score CI above 0"]
+    half = 1.959964 * sd / 2.0
+    e_sd = float(np.std(expected, ddof=1))
+    assert tables[0].rows == [["B", "4", f"+10.0 ± {half:.1f} (sd {sd:.0f})",
+                               f"+3.0 ± {1.959964 * e_sd / 2:.1f} (sd {e_sd:.0f})",
+                               f"{(1.959964 * sd / 3.0) ** 2:.0f}"]]
+    assert tables[1].rows[0][-1] == "never (estimate <= 0)"
+    out = cli("compare", ev, "--power", "--base", "A", "--markdown")
+    assert out.exit_code == 0, out.output
+    assert out.output.splitlines()[:4] == [
+        "### method - A, paired", "",
+        "| method | cell | paired | score difference ± 1.96 SE (sd) | expected_score "
+        "difference ± 1.96 SE (sd) | scenarios for a score CI above 0 |",
+        "|---|---:|---:|---:|---:|---:|"]
+
+
+def test_means_per_method_and_cell(cli, tmp_path):
+    ev = suite_folder(tmp_path / "ev")
+    tables = cmp.mean_tables([("ev", read_results(ev))], ["score", "reallocations"])
+    assert tables[0].header == ["method", "rows", "score, mean", "reallocations, mean"]
+    # reallocations: scenario % 3 of 100..103 = 1, 2, 0, 1
+    assert tables[0].rows == [["greedy", "4", "25.000", "1.000"],
+                              ["ATA-HRL", "4", "37.500", "1.000"],
+                              ["w/o.AUX", "4", "25.000", "1.000"],
+                              ["random", "4", "21.250", "1.000"]]
+    assert tables[1].rows[0] == ["greedy", "4", "18.000", "1.000"]
+    other = suite_folder(tmp_path / "other", shift=1.0)
+    tables = cmp.mean_tables([("ev", read_results(ev)), ("other", read_results(other))],
+                             ["score"], methods=["greedy"])
+    assert tables[0].rows == [["greedy", "ev", "4", "25.000"], ["greedy", "other", "4", "26.000"]]
+    out = cli("compare", ev, "--means", "-c", "nothere")
+    assert_user_error(out, "--column: no numeric column 'nothere' in the results of ")
+
+
+# -- the tables of docs/RESULTS.md ----------------------------------------------------------------
+def test_report_markdown_prints_the_results_tables(cli, tmp_path):
+    ev = folder(tmp_path / "ev", [(m, "a", "low", i, v) for m, v in (("ATA-HRL", 30.0),
+                                                                      ("greedy", 20.0))
+                                  for i in range(3)], pairs=[["greedy", "ATA-HRL"],
+                                                             ["greedy", "nobody"]])
+    table = ("| method | (a) low |\n|---|---:|\n| ATA-HRL | 30.0 [30, 30] (0.30 U) |\n"
+             "| greedy | 20.0 [20, 20] (0.20 U) |\n")
+    head = ("Paired differences, A - B on the same scenarios, mean [95% bootstrap CI] (bold: "
+            "the interval is above 0):\n\n| paired difference | (a) low |\n|---|---:|\n")
+    lead = "Mean total team performance [95% bootstrap CI] (mean fraction of U):\n\n"
+    # the suite's pairs (one naming a method the results lack: left out)
+    out = cli("report", ev, "--markdown")
+    assert out.exit_code == 0, out.output
+    assert out.output == lead + table + "\n" + head + "| greedy - ATA-HRL | -10.0 [-10.0, -10.0] |\n"
+    assert not (ev / "report.md").exists()
+    # --pair instead; bold where the interval is above 0
+    out = cli("report", ev, "--markdown", "--pair", "ATA-HRL,greedy")
+    assert out.output == lead + table + "\n" + head + \
+        "| ATA-HRL - greedy | **+10.0 [+10.0, +10.0]** |\n"
+    assert_user_error(cli("report", ev, "--markdown", "--pair", "ATA-HRL"),
+                      "--pair: names two methods")
+    # without pairs: the reference against every other method
+    (ev / "eval.json").write_text(json.dumps({"rows": 6}))
+    assert rep.default_pairs(read_results(ev)) == [("ATA-HRL", "greedy")]
+
+
+def test_suite_pairs_are_read_and_checked(tmp_path):
+    from ata.experiment.suites import load_suite
+    path = tmp_path / "s.toml"
+    path.write_text('[suite]\npairs = [["ATA-HRL", "greedy"]]\n[[method]]\nname = "g"\n'
+                    'mission = "builtin:greedy"\n')
+    assert load_suite(path).raw["suite"]["pairs"] == [["ATA-HRL", "greedy"]]
+    path.write_text('[suite]\npairs = ["ATA-HRL"]\n[[method]]\nname = "g"\n'
+                    'mission = "builtin:greedy"\n')
+    with pytest.raises(MissionError, match=r"\[suite\] key 'pairs': must be a list of \[A, B\]"):
+        load_suite(path)
+
+
+# -- 80 columns -----------------------------------------------------------------------------------
+def assert_whole_at_80(output: str, values: list[str]) -> None:
+    """No line over 80 characters, nothing cut short, and every value on one line, whole."""
+    lines = output.splitlines()
+    assert max(len(line) for line in lines) <= 80, output
+    assert "…" not in output
+    for value in values:
+        assert any(value in line for line in lines), f"{value!r} not shown whole in\n{output}"
+
+
+WIDE = {"ATA-HRL": 700.0, "ATA-HRL (learned off)": 600.0, "ITA-MILP": 650.0, "greedy": 640.0,
+        "w/o.AUX": 690.0}
+
+
+def test_report_and_compare_show_every_value_at_80_columns(tmp_path):
+    rows = [(m, s, lv, i, v + 37.3 * i - (300.0 if m == "greedy" and i % 2 else 0.0))
+            for m, v in WIDE.items() for s in "ab" for lv in ("low", "high") for i in range(5)]
+    ev = folder(tmp_path / "ev", rows)
+    code, output = cli80("report", ev, "--no-figures")
+    assert code == 0, output
+    report = rep.summarize(read_results(ev))
+    values = [v for s, lv in report.groups() for row in rep.table_rows(report, s, lv, True)[1]
+              for v in row]
+    assert_whole_at_80(output, values)
+    three = ["score", "expected_score", "fraction_of_u"]
+    for columns, power in ((["score"], False), (["score"], True), (three, False)):
+        args = [a for c in columns for a in ("-c", c)] + (["--power"] if power else [])
+        code, output = cli80("compare", ev, *args)
+        assert code == 0, output
+        tables = cmp.compare(read_results(ev), None, columns, power=power)
+        assert_whole_at_80(output, [v for t in tables for row in t.rows for v in row])
+    code, output = cli80("compare", ev, "--means", "-c", "score", "-c", "expected_score",
+                         "-c", "classified_share", "-c", "reallocations")
+    assert code == 0, output
+    assert_whole_at_80(output, [v for t in cmp.mean_tables(
+        [("ev", read_results(ev))], ["score", "expected_score", "classified_share",
+                                     "reallocations"]) for row in t.rows for v in row])
+
+
+def test_eval_shows_every_value_at_80_columns(tmp_path, monkeypatch):
+    monkeypatch.setenv("ATA_CACHE", str(tmp_path / "cache"))
+    suite = tmp_path / "s.toml"
+    suite.write_text('[suite]\nsettings = ["a"]\nuncertainty = ["high"]\nscenarios = 2\n'
+                     '[[method]]\nname = "greedy (on-event reallocation)"\n'
+                     'mission = "builtin:greedy"\n'
+                     '[[method]]\nname = "greedy, never reallocating"\nmission = "builtin:greedy"\n'
+                     'set = ["components.condition=\'never\'"]\n')
+    code, output = cli80("eval", suite, "-e", "serial", "-q", "-o", tmp_path / "out")
+    assert code == 0, output
+    report = rep.summarize(read_results(tmp_path / "out"))
+    assert_whole_at_80(output, [v for row in rep.table_rows(report, "a", "high", True)[1]
+                                for v in row])
