@@ -209,7 +209,7 @@ def render_summary(session, result) -> None:
                                  f"{m.event_probability})")
     first = m.settings.first_scenario
     table.add_row("scenarios", f"{s['scenarios']} (ids {first}..{first + s['scenarios'] - 1}, "
-                               f"root seed {m.settings.seed})")
+                               f"root seed {m.seed_label})")
     table.add_row("team performance", f"{s['score_mean']:.1f} ± {s['score_ci95']:.1f} "
                                       "(mean ± 95% CI half-width)")
     table.add_row("fraction of U", f"{s['fraction_of_u']:.3f} (U: the capacity-free bound)")

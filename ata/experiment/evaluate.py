@@ -50,7 +50,8 @@ SUITE_KEYS = {"name": "a label for the evaluation",
               "settings": "team settings to run every method at (a, b, custom)",
               "uncertainty": "uncertainty levels to run every method at",
               "scenarios": "scenarios per (method, setting, level)",
-              "seed": "root seed of the evaluation scenarios"}
+              "seed": "root seed of the evaluation scenarios, or 'env:NAME' to read a secret "
+                      "one from the environment"}
 METHOD_KEYS = {"name": "the method's label in results and reports",
                "mission": "its mission file, relative to the suite file, or builtin:NAME",
                "set": "--set overrides applied to the mission",
@@ -88,7 +89,7 @@ class Suite:
     settings: list[str] | None = None
     levels: list[str] | None = None
     scenarios: int | None = None
-    seed: int | None = None
+    seed: int | str | None = None       # a str: 'env:NAME', a secret seed read at plan time
     own: bool = False
     raw: dict[str, Any] = field(default_factory=dict)
 
@@ -151,7 +152,9 @@ def load_suite(path: str | Path) -> Suite:
     if "scenarios" in head:
         suite.scenarios = _int(head["scenarios"], "[suite]", "scenarios", path, 1)
     if "seed" in head:
-        suite.seed = _int(head["seed"], "[suite]", "seed", path, 0)
+        seed = head["seed"]
+        suite.seed = seed if isinstance(seed, str) and seed.startswith("env:") \
+            else _int(seed, "[suite]", "seed", path, 0)
     methods = raw.get("method", [])
     if not isinstance(methods, list) or not methods or \
             not all(isinstance(m, dict) for m in methods):
@@ -229,7 +232,7 @@ def check_held_out(mission: Mission, sim: Simulation) -> None:
         for t_seed, t_lo, t_hi in ranges or []:
             if seed == t_seed and lo < t_hi and t_lo < hi:
                 raise MissionError("[mission]", "first_scenario", f"scenarios {lo}..{hi - 1} "
-                                   f"of seed {seed} overlap the ids {t_lo}..{t_hi - 1} of that "
+                                   f"of seed {mission.seed_label} overlap the ids {t_lo}..{t_hi - 1} of that "
                                    "seed that a component's weights were trained on; "
                                    "evaluation scenarios must be held out")
 
@@ -321,7 +324,8 @@ def _job(suite: Suite, spec: MethodSpec, setting: str | None, level: str | None,
     if n is not None:
         overrides.append(f"mission.scenarios={int(n)}")
     root = seed if seed is not None else (suite.seed if suite.seed is not None else 0)
-    overrides += [f"mission.seed={int(root)}", f"mission.first_scenario={EVAL_FIRST_SCENARIO}"]
+    root = f"'{root}'" if isinstance(root, str) else int(root)    # 'env:NAME': secret
+    overrides += [f"mission.seed={root}", f"mission.first_scenario={EVAL_FIRST_SCENARIO}"]
     try:
         session = load_session(spec.mission, overrides, spec.plugins or None)
     except MissionError as exc:
@@ -412,7 +416,7 @@ def _rows(job: Job, part: dict[str, Any]) -> list[dict[str, Any]]:
     for i in range(ids.size):
         score, ub = float(part["total"][i]), float(part["upper_bound"][i])
         row = {"method": job.method, "setting": job.setting, "uncertainty": job.level,
-               "scenario": int(ids[i]), "seed": int(job.mission.settings.seed),
+               "scenario": int(ids[i]), "seed": job.mission.seed_label,
                "score": score, "upper_bound": ub,
                "fraction_of_u": score / ub if ub > 0 else float("nan"),
                "classified_share": float("nan"),
@@ -454,7 +458,7 @@ def write_eval(out_dir: str | Path, suites: list[Suite], jobs: list[Job], result
     meta = {"ata": __version__, "arguments": arguments,
             "suites": [{"path": s.path, "name": s.name, "content": s.raw} for s in suites],
             "jobs": [{"method": j.method, "setting": j.setting, "uncertainty": j.level,
-                      "scenarios": j.mission.settings.scenarios, "seed": j.mission.settings.seed,
+                      "scenarios": j.mission.settings.scenarios, "seed": j.mission.seed_label,
                       "first_scenario": j.mission.settings.first_scenario,
                       "mission": j.mission.source} for j in jobs],
             "rows": len(result.rows), "wall_s": result.wall_s,

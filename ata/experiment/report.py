@@ -81,9 +81,11 @@ class Results:
 
 REQUIRED = ("method", "setting", "uncertainty", "scenario", "seed", "score", "upper_bound",
             "fraction_of_u", "classified_share")
-TEXT_COLUMNS = ("method", "setting", "uncertainty")
-INT_COLUMNS = ("scenario", "seed")
-"""results.csv's columns of text and of integers; every other column holds numbers (blank: NaN)."""
+TEXT_COLUMNS = ("method", "setting", "uncertainty", "seed")
+INT_COLUMNS = ("scenario",)
+"""results.csv's columns of text and of integers; every other column holds numbers (blank: NaN).
+The seed is text: an integer, or the ``secret:`` hash of a secret one; rows pair on it as
+written."""
 
 
 def _parse(column: str, text: str) -> Any:
@@ -212,11 +214,11 @@ def paired_values(res: Results, ref: np.ndarray, other: np.ndarray,
     """A column (the score by default) of the rows `ref` and `other` select (masks, e.g. of
     `Results.select`), on the scenarios both ran (same seed and id), in pairs."""
     c = res.columns
-    key_r = {(int(s), int(i)): k for k, s, i in zip(np.nonzero(ref)[0], c["seed"][ref],
+    key_r = {(str(s), int(i)): k for k, s, i in zip(np.nonzero(ref)[0], c["seed"][ref],
                                                    c["scenario"][ref])}
-    pairs = [(key_r[(int(s), int(i))], k) for k, s, i in
+    pairs = [(key_r[(str(s), int(i))], k) for k, s, i in
              zip(np.nonzero(other)[0], c["seed"][other], c["scenario"][other])
-             if (int(s), int(i)) in key_r]
+             if (str(s), int(i)) in key_r]
     if not pairs:
         return np.zeros(0), np.zeros(0)
     a, b = np.array(pairs).T

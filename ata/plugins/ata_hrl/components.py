@@ -52,9 +52,7 @@ def decode_settings(ctx: DecisionContext) -> DecodeSettings:
     """The decoder's model constants: the greedy component's where the mission has one, and
     the mission's re-tasking cost."""
     cost = RetaskCost.of(ctx)
-    mission = ctx.params.get("mission")
-    greedy = (mission.component_settings.get("greedy") if mission is not None else None) \
-        or GreedyPolicy.Settings()
+    greedy = ctx.settings.get("greedy") or GreedyPolicy.Settings()
     return DecodeSettings(capture_s=greedy.capture_s, fatigue_floor=greedy.fatigue_floor,
                           human_time_cost=greedy.human_time_cost,
                           rate_offset_s=greedy.rate_offset_s, rebrief_s=cost.rebrief_s)

@@ -144,11 +144,7 @@ class RetaskCost:
 
     @classmethod
     def of(cls, ctx: DecisionContext) -> "RetaskCost":
-        mission = ctx.params.get("mission")
-        if mission is None:
-            return cls()
-        human = mission.component_settings.get(mission.slots.human_model)
-        robot = mission.component_settings.get(mission.slots.robot_model)
+        human, robot = ctx.models.get("human_model"), ctx.models.get("robot_model")
         rebrief = float(getattr(human, "rebrief_s", 0.0))
         sa_cost = float(getattr(human, "sa_drop", 0.0)) * float(getattr(human, "switch_cost_s",
                                                                         0.0))
