@@ -84,12 +84,14 @@ REQUIRED = ("method", "setting", "uncertainty", "scenario", "seed", "score", "up
 TEXT_COLUMNS = ("method", "setting", "uncertainty", "seed")
 INT_COLUMNS = ("scenario",)
 """results.csv's columns of text and of integers; every other column holds numbers (blank: NaN).
-The seed is text: an integer, or the ``secret:`` hash of a secret one; rows pair on it as
-written."""
+The seed is kept as text: an integer, or the ``secret:`` hash of a secret one; rows pair on
+it."""
 
 
 def _parse(column: str, text: str) -> Any:
     """One cell of results.csv as its column's type; ValueError when it is not one."""
+    if column == "seed":
+        return text if text.startswith("secret:") else str(int(text))
     if column in TEXT_COLUMNS:
         return text
     if column in INT_COLUMNS:
