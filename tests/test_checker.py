@@ -1,13 +1,22 @@
-"""The plugin checker (ata.testing.check_component): built-ins pass, broken components fail."""
+"""The plugin checker (ata.testing.check_component): built-ins pass, broken components fail,
+and so does a decision-maker that peeks at the world's future."""
+
+import inspect
 
 import numpy as np
 import pytest
 
 from ata import hookimpl
+from ata.core.kernel import Simulation
 from ata.core.state import Allocation
+from ata.plugins.ata_hrl.components import AttentionITA, AuxReconstructor, CTRPolicy
 from ata.plugins.conditions import Always, Never, OnEvent
 from ata.plugins.policies.greedy import GreedyPolicy
+from ata.plugins.policies.keep import Keep
+from ata.plugins.policies.milp import MilpPolicy
 from ata.plugins.policies.random_policy import RandomPolicy
+from ata.plugins.reconstructors import ArrivalReconstructor, IdentityReconstructor
+from ata.plugins.tr_pomdp.policy import TRPOMDPPolicy
 from ata.plugins.uncertainty.attribute_change import AttributeChange
 from ata.plugins.uncertainty.fatigue_noise import FatigueNoise
 from ata.plugins.uncertainty.latency import Latency
@@ -27,6 +36,22 @@ from ata.testing import check_component
     ("condition", OnEvent, None),
 ])
 def test_builtins_pass(kind, factory, settings):
+    check_component(kind, factory, settings=settings)
+
+
+@pytest.mark.parametrize("kind, factory, settings", [
+    ("policy", Keep, None),
+    ("policy", MilpPolicy, None),
+    ("policy", AttentionITA, None),
+    ("policy", CTRPolicy, None),
+    ("condition", CTRPolicy, None),
+    ("policy", TRPOMDPPolicy, None),
+    ("reconstructor", IdentityReconstructor, None),
+    ("reconstructor", ArrivalReconstructor, None),
+    ("reconstructor", AuxReconstructor, None),
+])
+def test_every_builtin_decision_maker_passes_the_integrity_check(kind, factory, settings):
+    # (greedy, random and the conditions are checked above)
     check_component(kind, factory, settings=settings)
 
 
@@ -119,3 +144,147 @@ def test_a_policy_with_no_decision_hook_fails_the_check():
     with pytest.raises(AssertionError, match="implements neither ata_initial_allocation nor "
                                              "ata_reallocate"):
         check_component("policy", Nothing)
+
+
+# --- peeking ------------------------------------------------------------------------------------
+
+def outcome_allocation(ctx, u):
+    """Robot 0 drives and classifies onboard every POI whose classification will succeed (its
+    outcome uniform below 1/2, roughly), robot 1 with human 0 classifying the others."""
+    B, P = ctx.reallocatable.shape
+    good = u[:, :P] < 0.5
+    return Allocation(np.where(good, 0, 1), np.full((B, P), -1), np.where(good, -1, 0))
+
+
+class PeeksThroughTheKernel:
+    """Deliberately peeking: finds the running Simulation up the call stack and reads the
+    world's outcome stream, as no context lets it."""
+
+    def __init__(self, settings, mission):
+        pass
+
+    @hookimpl
+    def ata_initial_allocation(self, ctx):
+        frame = inspect.currentframe()
+        while not isinstance(frame.f_locals.get("self"), Simulation):
+            frame = frame.f_back
+        world = frame.f_locals["self"].sim.rng
+        return outcome_allocation(ctx, world.uniform("tasks.outcome", 0, (ctx.sizes.tasks,)))
+
+
+def test_a_policy_reading_the_outcome_stream_fails_the_integrity_check():
+    with pytest.raises(AssertionError) as err:
+        check_component("policy", PeeksThroughTheKernel)
+    message = " ".join(str(err.value).split())
+    assert message.startswith("policy 'under_test' decides from what it cannot observe: in "
+                              "scenario 0, at epoch 0, its initial allocation for POI ")
+    # its own decision changed the allocation in force, which it sees from epoch 1
+    assert "with the unseen draws (tasks.outcome) drawn again; what it observed was the same " \
+           "in both runs before epoch 1" in message
+
+
+class PeeksThroughTheOldContext:
+    """Written against the context of old, which carried the mission: rebuilds the world's
+    generator from the root seed."""
+
+    def __init__(self, settings, mission):
+        pass
+
+    @hookimpl
+    def ata_initial_allocation(self, ctx):
+        from ata.core.rng import BatchRNG
+        seed = ctx.params["mission"].settings.seed
+        world = BatchRNG(seed, np.arange(ctx.reallocatable.shape[0]))
+        return outcome_allocation(ctx, world.uniform("tasks.outcome", 0, (ctx.sizes.tasks,)))
+
+
+def test_a_policy_reading_the_seed_from_its_context_fails_with_a_clear_message():
+    with pytest.raises(AttributeError, match="DecisionContext has no field 'params': the "
+                                             "decision context carries no mission"):
+        check_component("policy", PeeksThroughTheOldContext)
+
+
+class PeeksAtSetup:
+    """Written against the old API too: a policy implementing ata_setup got the world."""
+
+    def __init__(self, settings, mission):
+        self.u = None
+
+    @hookimpl
+    def ata_setup(self, sim):
+        self.u = sim.rng.uniform("tasks.outcome", 0, (sim.sizes.tasks,))
+
+    @hookimpl
+    def ata_initial_allocation(self, ctx):
+        return outcome_allocation(ctx, self.u)
+
+
+def test_a_policy_implementing_a_world_hook_is_refused():
+    with pytest.raises(AssertionError, match="broke the kernel's contract: initial component "
+                                             "'under_test' implements ata_setup, which hands "
+                                             "it the world's state and generator"):
+        check_component("policy", PeeksAtSetup)
+
+
+class DrawsFromAWorldStreamName:
+    """Names the outcome stream in its own generator: honest, and blind to the outcomes."""
+
+    def __init__(self, settings, mission):
+        pass
+
+    @hookimpl
+    def ata_initial_allocation(self, ctx):
+        return outcome_allocation(ctx, ctx.rng.uniform("tasks.outcome", 0, (ctx.sizes.tasks,)))
+
+
+def test_a_policy_naming_a_world_stream_in_its_own_generator_passes():
+    check_component("policy", DrawsFromAWorldStreamName)
+
+
+class ReconstructsFromTheOutcomes:
+    """A reconstructor that reads the outcomes through the kernel: its estimate changes."""
+
+    def __init__(self, settings, mission):
+        pass
+
+    @hookimpl
+    def ata_reconstruct(self, sim, obs, inherent, out):
+        frame = inspect.currentframe()
+        while not isinstance(frame.f_locals.get("self"), Simulation):
+            frame = frame.f_back
+        tasks = frame.f_locals["self"].sim.groups["tasks"]
+        out["will_succeed"] = (tasks.outcome_u < 0.5)[..., None].astype(float)
+
+
+def test_a_reconstructor_reading_the_outcomes_fails_the_integrity_check():
+    with pytest.raises(AssertionError, match="reconstructor 'under_test' decides from what it "
+                                             "cannot observe: in scenario 0, at epoch 0, its "
+                                             "reconstructed 'will_succeed' at row "):
+        check_component("reconstructor", ReconstructsFromTheOutcomes)
+
+
+class ForeseesFailures:
+    """A condition that reallocates an epoch before a robot fails, reading the failure times
+    through the kernel: nothing it observes shows them yet."""
+
+    def __init__(self, settings, mission):
+        pass
+
+    @hookimpl
+    def ata_should_reallocate(self, ctx):
+        frame = inspect.currentframe()
+        while not isinstance(frame.f_locals.get("self"), Simulation):
+            frame = frame.f_back
+        fail = frame.f_locals["self"].sim.groups["robots"].fail_time
+        soon = (fail > ctx.time) & (fail <= ctx.time + ctx.clock.epoch_s)
+        return soon.any(axis=1)
+
+
+def test_a_condition_foreseeing_failures_fails_the_integrity_check():
+    with pytest.raises(AssertionError, match=r"condition 'under_test' decides from what it "
+                                             r"cannot observe: in scenario \d+, at epoch \d+, "
+                                             r"its condition was (True|False) as the world drew "
+                                             r"it and (True|False) with the unseen draws "
+                                             r"\(tasks.outcome, robot_failure., "
+                                             r"attribute_change.\) drawn again"):
+        check_component("condition", ForeseesFailures)

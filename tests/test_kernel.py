@@ -390,3 +390,63 @@ def test_reallocatable_is_the_and_of_every_models_restriction():
     copy.restrict_reallocation(np.array([[False, False, False]]))
     np.testing.assert_array_equal(obs.reallocatable, [[True, False, False]])   # untouched
     np.testing.assert_array_equal(obs.take(np.array([0])).reallocatable, [[True, False, False]])
+
+
+def test_reallocatable_is_read_off_what_the_rows_hold():
+    from ata.core.state import Observation
+    obs = Observation()
+    obs.add("tasks", ["x"], np.zeros((2, 4, 1)))
+    obs.add("robots", ["x"], np.zeros((2, 3, 1)))
+    obs.hold("tasks", np.array([[-1, 1, -1, -1], [-1, -1, -1, 3]]), 4)     # captured
+    obs.hold("robots", np.array([[2, -1, -1], [-1, 0, -1]]), 4)            # legs under way
+    np.testing.assert_array_equal(obs.reallocatable, [[True, False, False, True],
+                                                      [False, True, True, False]])
+    obs.restrict_reallocation(np.array([[False, True, True, True], [True] * 4]))
+    np.testing.assert_array_equal(obs.reallocatable, [[False, False, False, True],
+                                                      [False, True, True, False]])
+    # a stale row shows what it held when it was observed
+    before = obs["robots"].copy()
+    obs["robots"].holds = np.array([[-1, -1, -1], [-1, 2, -1]])
+    obs["robots"].keep_rows(np.array([[True, False, False], [False, False, False]]), before)
+    np.testing.assert_array_equal(obs["robots"].holds, [[2, -1, -1], [-1, 2, -1]])
+    np.testing.assert_array_equal(obs.take(np.array([1])).reallocatable,
+                                  [[True, True, False, False]])
+    np.testing.assert_array_equal(obs.copy().reallocatable, obs.reallocatable)
+
+
+class Everywhere(Fixed):
+    """A policy that would also watch the world tick by tick."""
+
+    @hookimpl
+    def ata_advance(self, sim, t0, t1):
+        pass
+
+
+def test_a_decision_maker_implementing_a_world_hook_is_refused():
+    with pytest.raises(ContractError, match="reallocation component 'Everywhere' implements "
+                                            "ata_advance, which hands it the world's state"):
+        simulation(session(), {"reallocation": Everywhere([0, 0], [-1, -1], [-1, -1])})
+
+
+def test_a_change_a_stale_row_showed_possible_is_refused_counted_and_traced():
+    # The scenario of the test above: at t = 60 POI 0 is captured and POI 1's leg is under
+    # way. A stale observation shows all three open (as a stale task row and a stale robot row
+    # would), and the policy moves every one to human 0: POI 2 changes, POIs 0 and 1 keep their
+    # triples and count as refused.
+    sim = simulation(session(tasks=3, condition="always"),
+                     {"initial": Fixed([0, 0, 0], [-1, -1, -1], [-1, -1, -1]),
+                      "reallocation": Fixed([0, 0, 0], [0, 0, 0], [0, 0, 0])})
+    sim.reset()
+    place(sim, [(80, 0), (560, 0), (-800, 0)])
+    sim.sim.groups["humans"].skill[:] = 1
+    sim.step_epoch()
+    ctx = sim.begin_epoch()
+    np.testing.assert_array_equal(ctx.reallocatable, [[False, False, True]])
+    ctx.reallocatable[:] = True
+    sim.end_epoch(*sim.decide(ctx))
+    np.testing.assert_array_equal(sim.sim.record.allocations[0, 1],
+                                  [[0, -1, -1], [0, -1, -1], [0, 0, 0]])
+    assert ("refused", 1, 2) in sim.sim.trace
+    while sim.sim.epoch < sim.sim.clock.n_epochs:
+        sim.step_epoch()
+    assert sim.end_episode().metrics["refused_changes"].tolist() == [2.0]

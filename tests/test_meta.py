@@ -83,14 +83,16 @@ def test_doc_lists_the_shared_columns_of_the_built_in_models():
         assert ", ".join(f"`{c}`" for c in columns) in doc, columns
 
 
-class Spy:
-    """Counts the calls of every phase hook the kernel broadcasts (in an injector's place)."""
-
+class Counter:
     def __init__(self):
         self.calls: dict[str, int] = {}
 
     def _count(self, name):
         self.calls[name] = self.calls.get(name, 0) + 1
+
+
+class Spy(Counter):
+    """Counts the calls of every phase hook the kernel broadcasts (in an injector's place)."""
 
     @hookimpl
     def ata_setup(self, sim):
@@ -129,8 +131,13 @@ class Spy:
         self._count("ata_episode_end")
 
 
-class Deciders(Spy):
-    """Fills the decision slots, counting their calls."""
+class Deciders(Counter):
+    """Fills the decision slots, counting their calls (a decision-maker implements no hook
+    that hands it the world, so it is no Spy)."""
+
+    @hookimpl
+    def ata_episode_end(self, sim):
+        self._count("ata_episode_end")
 
     @hookimpl
     def ata_initial_allocation(self, ctx):

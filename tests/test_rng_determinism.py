@@ -58,6 +58,23 @@ def test_draws_differ_across_scenarios_streams_counters_and_seeds():
     assert len(set(scenario_keys(SEED, np.arange(1000)).tolist())) == 1000
 
 
+def test_resalted_streams_draw_again_and_the_others_do_not():
+    world = BatchRNG(SEED, np.arange(8))
+    again = world.resalted(("tasks.outcome", "robot_failure."), 1)
+    assert not np.array_equal(again.uniform("tasks.outcome", 0, (5,)),
+                              world.uniform("tasks.outcome", 0, (5,)))
+    assert not np.array_equal(again.normal("robot_failure.time", 0, (3,)),
+                              world.normal("robot_failure.time", 0, (3,)))
+    for stream in ("tasks.kind", "robot_failure", "latency.tasks"):   # prefixes, not names
+        np.testing.assert_array_equal(again.uniform(stream, 2, (5,)), world.uniform(stream, 2, (5,)))
+    np.testing.assert_array_equal(again.subset(np.array([3])).uniform("tasks.outcome", 0, (5,)),
+                                  again.uniform("tasks.outcome", 0, (5,))[[3]])
+    same = world.resalted(("tasks.outcome",), 0)
+    np.testing.assert_array_equal(same.uniform("tasks.outcome", 0, (5,)),
+                                  world.uniform("tasks.outcome", 0, (5,)))
+    assert world.salted == ()                                          # the original unchanged
+
+
 def test_uniform_range_and_moments():
     u = BatchRNG(SEED, np.arange(1000)).uniform("check.uniform", 0, (1000,)).ravel()
     n = u.size

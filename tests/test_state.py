@@ -10,7 +10,7 @@ import pytest
 from ata import hookimpl
 from ata.core.kernel import Simulation
 from ata.core.state import Queue, ReadOnlyState, last_per_key
-from ata.experiment.runner import load_session
+from ata.experiment.runner import BASELINE_MISSION, load_session
 from ata.plugins.humans import HumanState
 from ata.plugins.robots import RobotState
 from ata.plugins.tasks import TaskState
@@ -123,3 +123,19 @@ def test_the_work_between_models_is_what_the_queues_carried():
     for name in ("tasks.captured", "tasks.classified", "tasks.attribute_change",
                  "robots.failure", "robots.leg_started"):
         assert len(sim.sim.queues[name]) == 0, name
+
+
+def test_a_context_carries_its_settings_and_generator_into_a_sub_batch_and_no_mission():
+    s = load_session(str(BASELINE_MISSION), ["mission.scenarios=3", "mission.batch_size=3"])
+    sim = Simulation(s.mission, s.registry, [0, 1, 2])
+    sim.reset()
+    ctx = sim.begin_epoch()
+    sub = ctx.take(np.array([2]))
+    assert sub.settings is ctx.settings and sub.channel is ctx.channel
+    np.testing.assert_array_equal(sub.rng.uniform("x", 0, (4,)), ctx.rng.uniform("x", 0, (4,))[[2]])
+    np.testing.assert_array_equal(sub.reallocatable, ctx.reallocatable[[2]])
+    with pytest.raises(AttributeError, match="DecisionContext has no field 'params': the "
+                                             "decision context carries no mission"):
+        ctx.params
+    with pytest.raises(AttributeError, match="has no attribute 'mission'"):
+        ctx.mission

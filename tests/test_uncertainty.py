@@ -317,10 +317,21 @@ def test_robot_failure_setting_and_custom_level():
     check_rate(int(changed.sum()), changed.size, 0.3, [0.2, 0.4], "custom event probability")
 
 
-def test_reallocatable_is_observed_and_the_kernel_keeps_what_truly_cannot_change():
-    # under latency a policy sees which POIs are reallocatable as observed: a stale task row
-    # shows the POI as open or not as it was at the previous epoch. A POI truly captured (or
-    # with a leg under way) keeps its triple whatever a policy proposes for it.
+def _held(obs, P):
+    """(B, P) bool: the POIs some row of `obs` holds."""
+    out = np.zeros((obs["tasks"].features.shape[0], P), bool)
+    for group in ("tasks", "robots"):
+        holds = obs[group].holds
+        b, n = np.nonzero(holds >= 0)
+        out[b, holds[b, n]] = True
+    return out
+
+
+def test_reallocatable_is_read_off_the_observed_rows_and_the_kernel_refuses_what_cannot_change():
+    # under latency a policy sees which POIs are reallocatable as the observed rows show them:
+    # a stale task row holds its POI if it was captured then, a stale robot row the POI it was
+    # on its way to then. A POI truly captured (or with a leg under way) keeps its triple
+    # whatever a policy proposes for it, and the change counts as refused.
     B = 64
     s = load_session(str(BASELINE_MISSION), [
         f"mission.scenarios={B}", f"mission.batch_size={B}", "mission.uncertainty='high'",
@@ -329,30 +340,37 @@ def test_reallocatable_is_observed_and_the_kernel_keeps_what_truly_cannot_change
     sim = Simulation(s.mission, s.registry, np.arange(B))
     sim.reset()
     sim.step_epoch()
-    previous_open = sim.last_context.reallocatable.copy()
-    seen_stale_open = kept_against_proposal = 0
+    prev = sim.last_context.observed
+    P = sim.sim.sizes.tasks
+    seen_open = robot_row_only = refused = 0
     for _ in range(12):
         ctx = sim.begin_epoch()
         truth, observed = sim.last_truth, ctx.observed
-        stale = observed.extras["stale_tasks"]
-        fresh = ~stale
-        # a fresh row's reallocatable is the truth; a stale one is the last epoch's observation
-        assert np.array_equal(ctx.reallocatable[fresh], truth.reallocatable[fresh])
-        assert np.array_equal(ctx.reallocatable[stale], previous_open[stale])
-        seen_stale_open += int((ctx.reallocatable & ~truth.reallocatable).sum())
-        # propose a change of every POI the policy sees as open: a new robot for each
+        for group in ("tasks", "robots"):
+            stale = observed.extras[f"stale_{group}"]
+            held, true_held, before = (observed[group].holds, truth[group].holds,
+                                       prev[group].holds)
+            assert np.array_equal(held[~stale], true_held[~stale])
+            assert np.array_equal(held[stale], before[stale])
+        assert np.array_equal(ctx.reallocatable, ~_held(observed, P))
+        shown_open = ctx.reallocatable & ~truth.reallocatable
+        seen_open += int(shown_open.sum())
+        # shown open although the POI's own row is fresh: a stale robot row hides its leg
+        robot_row_only += int((shown_open & ~observed.extras["stale_tasks"]).sum())
+        # propose a change of every POI: a new robot for each
         proposal = ctx.previous.copy()
         proposal.robot[:] = (ctx.previous.robot + 1) % sim.sim.sizes.robots
-        before = ctx.previous.copy()
+        before_alloc = ctx.previous.copy()
         sim.end_epoch(proposal, np.ones(B, bool))
         after = sim.sim.allocation
         locked = ~truth.reallocatable
-        assert np.array_equal(after.robot[locked], before.robot[locked])
-        kept_against_proposal += int((ctx.reallocatable & locked).sum())
+        assert np.array_equal(after.robot[locked], before_alloc.robot[locked])
         both = ctx.reallocatable & truth.reallocatable
         assert np.array_equal(after.robot[both], proposal.robot[both])
-        previous_open = ctx.reallocatable.copy()
-    assert seen_stale_open > 0 and kept_against_proposal > 0
+        refused += int(shown_open.sum())
+        assert sim.sim.record.refused.sum() == refused
+        prev = observed
+    assert seen_open > 0 and robot_row_only > 0
 
 
 def test_arrivals_guesses_captures_the_latency_hides_from_the_robot_rows():

@@ -12,7 +12,10 @@ Two kinds of plugin take part:
   injectors in their listed order, reconstructors, then the policies).
 
 The decision hooks (``ata_initial_allocation``, ``ata_should_reallocate``, ``ata_reallocate``)
-are called only on the one component chosen for their slot. The order in which a robot visits
+are called only on the one component chosen for their slot. A decision-maker (a component in a
+decision slot: reconstructors, initial, condition, reallocation) sees the scenario through its
+``DecisionContext`` (a reconstructor through a ``DecisionView``) and may implement no hook
+that hands it the world (``sim``) before ``ata_episode_end``: the kernel refuses it. The order in which a robot visits
 its POIs is not a hook: it is a setting of the robot model (``[robot] routing``).
 """
 
@@ -24,7 +27,7 @@ import numpy as np
 import pluggy
 
 if TYPE_CHECKING:
-    from ata.core.state import Allocation, DecisionContext, Observation, SimState
+    from ata.core.state import Allocation, DecisionContext, DecisionView, Observation, SimState
 
 hookspec = pluggy.HookspecMarker("ata")
 
@@ -81,9 +84,12 @@ def ata_inject(sim: "SimState", obs: "Observation") -> None:
 
 
 @hookspec
-def ata_reconstruct(sim: "SimState", obs: "Observation", inherent: "Observation",
+def ata_reconstruct(sim: "DecisionView", obs: "Observation", inherent: "Observation",
                     out: dict[str, np.ndarray]) -> None:
     """Estimate the true state from the observation: a reconstructor's phase.
+
+    :param sim: the batch as a decision-maker sees it: size, clock, time, the allocation in
+        force and the decision-makers' generator (never the world's state or generator).
 
     :param out: put each estimate under a name of your own, shape (B, N, F); policies read it
         from ``DecisionContext.reconstructed``.
@@ -106,8 +112,8 @@ def ata_reallocate(ctx: "DecisionContext", active: np.ndarray) -> "Allocation":
 
     Only tasks in ``ctx.reallocatable`` (as observed) may change; the kernel keeps the previous
     triple for the others, for the tasks that truly may not change (captured, or a leg under way,
-    though a stale observation shows them open) and for inactive scenarios. Called on the
-    reallocation component only.
+    though a stale observation shows them open: such a change is refused, and counted) and for
+    inactive scenarios. Called on the reallocation component only.
     """
 
 

@@ -7,6 +7,8 @@ serves the whole batch. A component's exception propagates: nothing is swallowed
 
 from __future__ import annotations
 
+import copy
+from types import MappingProxyType
 from typing import Any, Callable, Sequence
 
 import numpy as np
@@ -16,13 +18,28 @@ from ata.core import hookspecs
 from ata.core.errors import ContractError, MissionError
 from ata.core.mission import SLOT_HOOKS, SLOT_KINDS, Mission
 from ata.core.registry import Register
-from ata.core.rng import BatchRNG
-from ata.core.state import Allocation, DecisionContext, EpisodeRecord, Observation, SimState
+from ata.core.rng import BatchRNG, decision_rng
+from ata.core.state import (Allocation, DecisionContext, DecisionView, EpisodeRecord, Observation,
+                            SimState)
+
+DECISION_KINDS = frozenset({"policy", "condition", "reconstructor"})
+"""The decision-makers' kinds: built from the mission without its seed (`Mission.public`),
+they see the world through their DecisionContext (a reconstructor through a DecisionView)."""
+DECISION_SLOTS = ("reconstructors", "initial", "condition", "reallocation")
+MODEL_SLOTS = ("task_model", "human_model", "robot_model")
+WORLD_HOOKS = ("ata_setup", "ata_inherent", "ata_observe", "ata_inject",
+               "ata_allocation_changed", "ata_advance", "ata_epoch_end")
+"""The phase hooks that receive the world (``sim``) before the episode ends: a
+decision-maker may implement none of them."""
+
 
 def build_component(registry: Register, mission: Mission, kind: str, name: str) -> Any:
     """Create one component instance from its factory and its resolved settings (its defaults
-    when the mission does not choose it, as for a trainer's teacher)."""
+    when the mission does not choose it, as for a trainer's teacher). A decision-maker's factory
+    gets the mission without its root seed."""
     info = registry.get(kind, name, "[components]")
+    if kind in DECISION_KINDS:
+        mission = mission.public()
     settings = mission.component_settings.get(name)
     if settings is None and getattr(info.factory, "Settings", None) is not None:
         settings = info.factory.Settings()
@@ -32,6 +49,10 @@ def build_component(registry: Register, mission: Mission, kind: str, name: str) 
     except AttributeError:
         pass
     return component
+
+
+def _names(value: str | list[str]) -> list[str]:
+    return value if isinstance(value, list) else [value]
 
 
 class Simulation:
@@ -47,6 +68,8 @@ class Simulation:
                  *, trace: bool = False, overrides: dict[str, Any] | None = None):
         self.mission = mission
         rng = BatchRNG(mission.settings.seed, np.asarray(scenario_ids))
+        self.decision_rng = decision_rng(mission.settings.seed, np.asarray(scenario_ids))
+        """The decision-makers' generator: streams of their own, never the world's."""
         self.sim = SimState(sizes=mission.sizes, clock=mission.clock, rng=rng,
                             params={"mission": mission}, trace=trace)
         self.pm = pluggy.PluginManager("ata")
@@ -88,12 +111,32 @@ class Simulation:
                                    f"slot: it implements no {hook_name}", file=mission.source)
             self._callers[slot] = self.pm.subset_hook_caller(
                 hook_name, remove_plugins=[c for c in everyone if c is not component])
+        self._refuse_world_hooks(ordered)
+        names = {n for slot in DECISION_SLOTS for n in _names(getattr(mission.slots, slot))}
+        self.decision_settings = MappingProxyType(
+            {n: copy.deepcopy(mission.component_settings.get(n)) for n in sorted(names)})
         self.inherent: Observation | None = None
         self.last_context: DecisionContext | None = None
         self.last_truth: Observation | None = None
         """The true S of the epoch begun last: never in a policy's context; a teacher that
         needs it (supervised training of reconstructors) reads it from the Simulation."""
         self._pending: DecisionContext | None = None   # the context of an epoch begun, not ended
+
+    def _refuse_world_hooks(self, ordered: list[tuple[str, Any]]) -> None:
+        """Raise a ContractError when a component in a decision slot implements a hook that
+        would hand it the world (its state, its generator) before the episode ends."""
+        deciders = [(name, c) for name, c in ordered if name.split(":")[0] in DECISION_SLOTS]
+        for hook_name in WORLD_HOOKS:
+            impls = [i.plugin for i in getattr(self.pm.hook, hook_name).get_hookimpls()]
+            for name, component in deciders:
+                if any(p is component for p in impls):
+                    slot = name.split(":", 1)[0]
+                    comp = getattr(component, "component_name", None) or type(component).__name__
+                    raise ContractError(
+                        f"{slot} component {comp!r} implements {hook_name}, which "
+                        "hands it the world's state and generator: a decision-maker sees the "
+                        "scenario through its DecisionContext alone (a reconstructor through "
+                        "ata_reconstruct; see docs/plugins.md)")
 
     @property
     def batch_size(self) -> int:
@@ -117,8 +160,9 @@ class Simulation:
         realloc = self._reallocatable(observed)
         return DecisionContext(epoch=sim.epoch, time=sim.now, sizes=sim.sizes, clock=sim.clock,
                                inherent=self.inherent, observed=observed, reconstructed=recon,
-                               previous=sim.allocation, reallocatable=realloc, rng=sim.rng,
-                               params=sim.params, channel=sim.channel)
+                               previous=sim.allocation, reallocatable=realloc,
+                               rng=self.decision_rng, settings=self.decision_settings,
+                               channel=sim.channel)
 
     def _check(self, alloc: Any, slot: str) -> Allocation:
         sim = self.sim
@@ -166,7 +210,8 @@ class Simulation:
         observed = truth.copy()
         hook.ata_inject(sim=sim, obs=observed)
         recon: dict[str, np.ndarray] = {}
-        hook.ata_reconstruct(sim=sim, obs=observed, inherent=self.inherent, out=recon)
+        hook.ata_reconstruct(sim=DecisionView(sim, self.decision_rng), obs=observed,
+                             inherent=self.inherent, out=recon)
         ctx = self._context(observed, recon)
         self.last_context = self._pending = ctx
         self.last_truth = truth
@@ -215,11 +260,19 @@ class Simulation:
                                     f"{active.shape}")
             if active.any():
                 proposed = self._check(allocation, "reallocation")
-                # what the policy saw as reallocatable and what truly is (a stale observation
-                # may show a captured POI as open: its triple stays, whatever was proposed)
-                allowed = active[:, None] & ctx.reallocatable \
-                    & self._reallocatable(self.last_truth)
                 previous = sim.allocation
+                # what the policy saw as reallocatable and what truly is: a stale observation
+                # may show a captured POI, or one a robot is on its way to, as open. Its triple
+                # stays, and a change proposed there counts as refused.
+                shown = active[:, None] & ctx.reallocatable
+                truly = self._reallocatable(self.last_truth)
+                refused = shown & ~truly & ((proposed.robot != previous.robot)
+                                            | (proposed.navigator != previous.navigator)
+                                            | (proposed.classifier != previous.classifier))
+                if refused.any():
+                    sim.record.refused += refused.sum(axis=1)
+                    sim.log("refused", k, int(refused.sum()))
+                allowed = shown & truly
                 merged = proposed.where(allowed, previous)
                 changed = ((merged.robot != previous.robot) | (merged.navigator != previous.navigator)
                            | (merged.classifier != previous.classifier))
@@ -257,5 +310,7 @@ class Simulation:
 
     def end_episode(self) -> EpisodeRecord:
         """After the last epoch: the components write their per-scenario results; the record."""
+        record = self.sim.record
+        record.metrics["refused_changes"] = record.refused.astype(float)
         self.pm.hook.ata_episode_end(sim=self.sim)
-        return self.sim.record
+        return record

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import hashlib
+import os
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -120,6 +122,23 @@ class Mission:
     slots: ComponentSlots
     component_settings: dict[str, Any]   # component name -> its Settings instance (or None)
     source: str = "<built-in>"
+    secret_seed: bool = False            # the seed came from the environment: never written
+
+    @property
+    def seed_label(self) -> int | str:
+        """The root seed as results and resolved files show it: the seed, or for a secret one
+        ``secret:`` and the start of its SHA-256 (a host who reveals the seed later can be
+        checked against it)."""
+        seed = self.settings.seed
+        return seed_hash(seed) if self.secret_seed else seed
+
+    def public(self) -> "Mission":
+        """The mission as a decision-maker's factory gets it: a copy without the root seed
+        (None), which would let it rebuild the world's random streams."""
+        m = copy.deepcopy(self)
+        m.settings.seed = None
+        m.secret_seed = False
+        return m
 
     @property
     def sizes(self) -> TeamSize:
@@ -169,6 +188,7 @@ class Mission:
         """The full mission as a TOML-ready dict: every key, every default."""
         out: dict[str, Any] = {"mission": settings_dict(self.settings),
                                "components": settings_dict(self.slots)}
+        out["mission"]["seed"] = self.seed_label
         for name, st in self.component_settings.items():
             out[name] = settings_dict(st) if st is not None else {}
         return out
@@ -180,7 +200,48 @@ class Mission:
         """A copy with some ``[mission]`` keys changed (no re-validation of components)."""
         m = copy.deepcopy(self)
         m.settings = dataclasses.replace(m.settings, **mission_keys)
+        if "seed" in mission_keys:
+            m.secret_seed = False
         return m
+
+
+SECRET_SEED_MIN = 2**32
+"""A secret seed below it could be found from its hash by trying them all."""
+
+
+def seed_hash(seed: int) -> str:
+    """``secret:`` and the first 16 hex digits of the SHA-256 of the seed's decimal digits."""
+    return "secret:" + hashlib.sha256(str(int(seed)).encode()).hexdigest()[:16]
+
+
+def secret_seed(value: Any) -> int | None:
+    """The seed an ``env:NAME`` value names (read from the environment), None for any other
+    value; a MissionError naming the fix for a missing, malformed or guessable one, and for
+    the ``secret:`` label of a resolved file."""
+    if not isinstance(value, str):
+        return None
+    if value.startswith("secret:"):
+        raise MissionError("[mission]", "seed", f"{value!r} is the hash of a secret seed, not "
+                           "a seed: give the seed again as 'env:NAME', NAME an environment "
+                           "variable that holds it")
+    if not value.startswith("env:"):
+        return None
+    name = value[4:]
+    text = os.environ.get(name)
+    if not name or text is None:
+        raise MissionError("[mission]", "seed", f"{value!r} reads the environment variable "
+                           f"{name!r}, which is not set: export {name or 'NAME'}=N, N a secret "
+                           "integer (python -c 'import secrets; print(secrets.randbits(63))')")
+    try:
+        seed = int(text.strip())
+    except ValueError:
+        raise MissionError("[mission]", "seed", f"the environment variable {name!r} holds "
+                           "no integer") from None
+    if not SECRET_SEED_MIN <= seed < 2**63:
+        raise MissionError("[mission]", "seed", f"the secret seed in {name!r} must lie in "
+                           f"[2**32, 2**63): a smaller one is found from its hash by trying "
+                           "them all (python -c 'import secrets; print(secrets.randbits(63))')")
+    return seed
 
 
 def read_toml(path: str | Path) -> dict[str, Any]:
@@ -278,7 +339,11 @@ def _validate(raw: dict[str, Any], registry: Register, source: str) -> Mission:
     for table in ("mission", "components"):
         if table in raw and not isinstance(raw[table], dict):
             raise MissionError(f"[{table}]", None, "must be a table")
-    settings = build_settings(MissionSettings, raw.get("mission"), "[mission]")
+    head = raw.get("mission")
+    secret = secret_seed(head.get("seed")) if isinstance(head, dict) else None
+    if secret is not None:
+        head = {**head, "seed": secret}
+    settings = build_settings(MissionSettings, head, "[mission]")
     base = TEAM_SETTINGS.get(settings.setting)
     if base is not None and any(getattr(settings, k) not in (None, getattr(base, k))
                                 for k in ("humans", "robots", "tasks")):
@@ -346,7 +411,7 @@ def _validate(raw: dict[str, Any], registry: Register, source: str) -> Mission:
     # names every plugin it needs (worker processes load them up front from it)
     settings.plugins = list(dict.fromkeys([*settings.plugins, *registry.loaded]))
     return Mission(settings=settings, slots=slots, component_settings=component_settings,
-                   source=source)
+                   source=source, secret_seed=secret is not None)
 
 
 def _check_clock(s: MissionSettings) -> None:

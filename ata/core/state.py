@@ -8,12 +8,12 @@ them; policies read them by column name.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Iterable, TypeVar
+from typing import Any, Iterable, Mapping, TypeVar
 
 import numpy as np
 
 from ata.core.errors import ContractError
-from ata.core.rng import BatchRNG
+from ata.core.rng import BatchRNG, StreamRNG
 
 
 @dataclass(frozen=True)
@@ -47,14 +47,21 @@ class TeamSize:
 
 
 class EntityTable:
-    """Features of one kind of entity: an array (B, N, F) with named columns and a mask (B, N)."""
+    """Features of one kind of entity: an array (B, N, F) with named columns and a mask (B, N).
 
-    def __init__(self, names: Iterable[str], features: np.ndarray, mask: np.ndarray | None = None):
+    ``holds`` (B, N) int, when a model sets it (`Observation.hold`): the task each row holds,
+    which may not be reallocated (-1: none). It belongs to the row: a stale row holds what it
+    held when it was observed.
+    """
+
+    def __init__(self, names: Iterable[str], features: np.ndarray, mask: np.ndarray | None = None,
+                 holds: np.ndarray | None = None):
         self.names: tuple[str, ...] = tuple(names)
         if features.ndim != 3 or features.shape[2] != len(self.names):
             raise ValueError(f"features must be (B, N, {len(self.names)}), got {features.shape}")
         self.features = features
         self.mask = np.ones(features.shape[:2], dtype=bool) if mask is None else mask
+        self.holds = holds
         self._index = {n: i for i, n in enumerate(self.names)}
 
     def index(self, name: str) -> int:
@@ -71,29 +78,63 @@ class EntityTable:
         self.features[:, :, self.index(name)] = values
 
     def copy(self) -> "EntityTable":
-        return EntityTable(self.names, self.features.copy(), self.mask.copy())
+        return EntityTable(self.names, self.features.copy(), self.mask.copy(),
+                           None if self.holds is None else self.holds.copy())
 
     def take(self, rows: np.ndarray) -> "EntityTable":
         """The table of a sub-batch of scenarios."""
-        return EntityTable(self.names, self.features[rows], self.mask[rows])
+        return EntityTable(self.names, self.features[rows], self.mask[rows],
+                           None if self.holds is None else self.holds[rows])
+
+    def keep_rows(self, stale: np.ndarray, previous: "EntityTable") -> None:
+        """Show the rows where `stale` (B, N) holds as they were in `previous` (an injector's
+        latency): their features and what they held."""
+        self.features[:] = np.where(stale[..., None], previous.features, self.features)
+        if self.holds is not None and previous.holds is not None:
+            self.holds = np.where(stale, previous.holds, self.holds)
 
 
 class Observation(dict):
     """Entity tables by group name ("humans", "robots", "tasks"), plus named extra arrays, and
     the declared field ``reallocatable``: (B, P) bool, the tasks whose triple may change now
-    (None until a model restricts it: then every task may)."""
+    (None until a model restricts it: then every task may).
+
+    ``reallocatable`` is read off the observation itself: no row of any table holds the task
+    (`hold`), and no model's other restriction forbids it (`restrict_reallocation`). A stale
+    row shows what it held when it was observed, so the field is as observed, like the rest.
+    """
 
     def __init__(self, *args: Any, **kwargs: Any):
         super().__init__(*args, **kwargs)
         self.extras: dict[str, np.ndarray] = {}
-        self.reallocatable: np.ndarray | None = None
+        self.allowed: np.ndarray | None = None   # the restrictions not tied to a row
+        self.n_tasks: int | None = None
 
     def restrict_reallocation(self, allowed: np.ndarray) -> None:
         """A model's say on which tasks may be reallocated now: (B, P) bool, combined with the
-        other models' by logical and."""
+        other models' by logical and. A restriction that follows from a table's rows is better
+        declared with `hold`, so that it goes stale with them."""
         allowed = np.asarray(allowed, dtype=bool)
-        self.reallocatable = allowed if self.reallocatable is None \
-            else self.reallocatable & allowed
+        self.allowed = allowed if self.allowed is None else self.allowed & allowed
+        self.n_tasks = allowed.shape[1]
+
+    def hold(self, group: str, tasks: np.ndarray, n_tasks: int) -> None:
+        """Declare the task each row of table `group` holds: (B, N) int, -1 for none. A held
+        task may not be reallocated (a robot's leg under way, a task's own capture)."""
+        self[group].holds = np.asarray(tasks, dtype=np.int64)
+        self.n_tasks = int(n_tasks)
+
+    @property
+    def reallocatable(self) -> np.ndarray | None:
+        held = [t.holds for t in self.values() if t.holds is not None]
+        if not held:
+            return None if self.allowed is None else self.allowed.copy()
+        out = np.ones((held[0].shape[0], self.n_tasks), dtype=bool) if self.allowed is None \
+            else self.allowed.copy()
+        for holds in held:
+            b, n = np.nonzero(holds >= 0)
+            out[b, holds[b, n]] = False
+        return out
 
     def add(self, group: str, names: Iterable[str], features: np.ndarray,
             mask: np.ndarray | None = None) -> EntityTable:
@@ -101,18 +142,22 @@ class Observation(dict):
         self[group] = table
         return table
 
-    def copy(self) -> "Observation":
-        out = Observation({k: v.copy() for k, v in self.items()})
-        out.extras = {k: v.copy() for k, v in self.extras.items()}
-        out.reallocatable = None if self.reallocatable is None else self.reallocatable.copy()
+    def _with(self, tables: dict[str, EntityTable], extras: dict[str, np.ndarray],
+              allowed: np.ndarray | None) -> "Observation":
+        out = Observation(tables)
+        out.extras, out.allowed, out.n_tasks = extras, allowed, self.n_tasks
         return out
+
+    def copy(self) -> "Observation":
+        return self._with({k: v.copy() for k, v in self.items()},
+                          {k: v.copy() for k, v in self.extras.items()},
+                          None if self.allowed is None else self.allowed.copy())
 
     def take(self, rows: np.ndarray) -> "Observation":
         """The observation of a sub-batch of scenarios."""
-        out = Observation({k: v.take(rows) for k, v in self.items()})
-        out.extras = {k: v[rows] for k, v in self.extras.items()}
-        out.reallocatable = None if self.reallocatable is None else self.reallocatable[rows]
-        return out
+        return self._with({k: v.take(rows) for k, v in self.items()},
+                          {k: v[rows] for k, v in self.extras.items()},
+                          None if self.allowed is None else self.allowed[rows])
 
 
 AUTO = -1
@@ -191,13 +236,16 @@ class EpisodeRecord:
     #                                       epoch's classifications expected, given how they
     #                                       were made (for training; the outcome draws aside)
     warnings: list[str] = field(default_factory=list)   # for the run's summary
+    refused: np.ndarray | None = None   # (B,) changes the kernel refused: proposed for a task
+    #                                     shown reallocatable (a stale row) that truly was not
 
     @classmethod
     def empty(cls, batch: int, n_epochs: int, n_tasks: int) -> "EpisodeRecord":
         return cls(r_perf=np.zeros((batch, n_epochs)),
                    reallocated=np.zeros((batch, n_epochs), dtype=bool),
                    allocations=np.zeros((batch, n_epochs, n_tasks, 3), dtype=np.int16),
-                   upper_bound=np.zeros(batch), r_expected=np.zeros((batch, n_epochs)))
+                   upper_bound=np.zeros(batch), r_expected=np.zeros((batch, n_epochs)),
+                   refused=np.zeros(batch, dtype=np.int64))
 
     @property
     def total(self) -> np.ndarray:
@@ -344,7 +392,8 @@ class SimState:
     ``sim.group("humans")``. Work passes between models through named queues
     (``sim.queue(name)``). Typed values one component provides for others (a team model's
     constants) go through ``sim.publish(value)`` and ``sim.published(Type)``. ``sim.params``
-    carries the resolved mission; ``sim.rng`` draws per-scenario numbers.
+    carries the resolved mission; ``sim.rng`` draws per-scenario numbers. Both are the world's:
+    no decision hook receives them.
     """
 
     def __init__(self, *, sizes: TeamSize, clock: Clock, rng: BatchRNG,
@@ -402,9 +451,42 @@ class SimState:
             self.trace.append(event)
 
 
+class DecisionView:
+    """What a reconstructor sees of the batch (the ``sim`` of ``ata_reconstruct``): its size,
+    clock and time, the allocation in force and the decision-makers' generator; never the
+    world's state, generator or settings."""
+
+    __slots__ = ("batch_size", "sizes", "clock", "epoch", "now", "allocation", "rng", "channel")
+
+    def __init__(self, sim: SimState, rng: StreamRNG):
+        self.batch_size, self.sizes, self.clock = sim.batch_size, sim.sizes, sim.clock
+        self.epoch, self.now = sim.epoch, sim.now
+        self.allocation = None if sim.allocation is None else sim.allocation.copy()
+        self.rng = rng
+        self.channel = sim.channel
+
+    def published(self, kind: type[T]) -> T:
+        """What the team models published as `kind` (their constants), as ``sim.published``."""
+        return self.channel.get(kind)
+
+    def __getattr__(self, name: str) -> Any:
+        raise AttributeError(f"a reconstructor sees no {name!r}: it estimates the state from "
+                             "the observation (obs, inherent) and the allocation in force; the "
+                             "world's state and generator are the models' own")
+
+
+REMOVED_CONTEXT_FIELDS = {
+    "params": "the decision context carries no mission (its root seed would let a policy "
+              "rebuild the world): a component reads its own settings from its factory's "
+              "arguments or ctx.settings, the team models' constants from ctx.published(Type)"}
+
+
 @dataclass
 class DecisionContext:
-    """What an allocation, condition or reallocation policy sees at a decision epoch."""
+    """What an allocation, condition or reallocation policy sees at a decision epoch: I, the
+    observed S, the reconstructors' estimates, the allocation in force, the settings of the
+    mission's decision components and the team models' constants, and a generator of its own.
+    Nothing in it leads to the true state, the world's generator or the root seed."""
 
     epoch: int
     time: float
@@ -415,15 +497,24 @@ class DecisionContext:
     reconstructed: dict[str, np.ndarray]  # reconstructors' outputs by name
     previous: Allocation | None         # the allocation in force; None at t = 0
     reallocatable: np.ndarray           # (B, P) bool: tasks whose triple may change now, as
-    #                                     observed (S): under latency a POI's row may be stale
-    rng: BatchRNG
-    params: dict[str, Any] = field(default_factory=dict)
-    channel: Channel = field(default_factory=Channel)   # what the components published
+    #                                     observed (S): under latency a row may be stale
+    rng: StreamRNG                      # the decision-makers' own streams, never the world's
+    settings: Mapping[str, Any] = field(default_factory=dict)
+    """The resolved settings of the mission's decision components (policies, condition,
+    reconstructors), by component name."""
+    channel: Channel = field(default_factory=Channel)
+    """What the team models published: their constants (``published(Type)``)."""
 
     def published(self, kind: type[T]) -> T:
         """The value a component published as `kind` (a team model's constants, say);
         ``ContractError`` naming the type and its publisher when none did."""
         return self.channel.get(kind)
+
+    def __getattr__(self, name: str) -> Any:
+        if name in REMOVED_CONTEXT_FIELDS:
+            raise AttributeError(f"DecisionContext has no field {name!r}: "
+                                 f"{REMOVED_CONTEXT_FIELDS[name]}")
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     def take(self, rows: np.ndarray) -> "DecisionContext":
         """The context of a sub-batch of scenarios (a policy may decide for those alone)."""
@@ -434,5 +525,5 @@ class DecisionContext:
                                observed=sub(self.observed),
                                reconstructed={k: v[rows] for k, v in self.reconstructed.items()},
                                previous=sub(self.previous), reallocatable=self.reallocatable[rows],
-                               rng=self.rng.subset(rows), params=self.params,
+                               rng=self.rng.subset(rows), settings=self.settings,
                                channel=self.channel)

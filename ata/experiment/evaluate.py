@@ -80,8 +80,8 @@ def check_held_out(mission: Mission, sim: Simulation) -> None:
         for t_seed, t_lo, t_hi in ranges or []:
             if seed == t_seed and lo < t_hi and t_lo < hi:
                 raise MissionError("[mission]", "first_scenario", f"scenarios {lo}..{hi - 1} "
-                                   f"of seed {seed} overlap the ids {t_lo}..{t_hi - 1} of that "
-                                   "seed that a component's weights were trained on; "
+                                   f"of seed {mission.seed_label} overlap the ids "
+                                   f"{t_lo}..{t_hi - 1} of that seed that a component's weights were trained on; "
                                    "evaluation scenarios must be held out")
 
 
@@ -172,7 +172,8 @@ def _job(suite: Suite, spec: MethodSpec, setting: str | None, level: str | None,
     if n is not None:
         overrides.append(f"mission.scenarios={int(n)}")
     root = seed if seed is not None else (suite.seed if suite.seed is not None else 0)
-    overrides += [f"mission.seed={int(root)}", f"mission.first_scenario={EVAL_FIRST_SCENARIO}"]
+    root = f"'{root}'" if isinstance(root, str) else int(root)    # 'env:NAME': secret
+    overrides += [f"mission.seed={root}", f"mission.first_scenario={EVAL_FIRST_SCENARIO}"]
     try:
         session = load_session(spec.mission, overrides, spec.plugins or None)
     except MissionError as exc:
@@ -287,7 +288,7 @@ def _rows(job: Job, part: dict[str, Any]) -> list[dict[str, Any]]:
     for i in range(ids.size):
         score, ub = float(part["total"][i]), float(part["upper_bound"][i])
         row = {"method": job.method, "setting": job.setting, "uncertainty": job.level,
-               "scenario": int(ids[i]), "seed": int(job.mission.settings.seed),
+               "scenario": int(ids[i]), "seed": job.mission.seed_label,
                "score": score, "upper_bound": ub,
                "fraction_of_u": score / ub if ub > 0 else float("nan"),
                "classified_share": float("nan"),
@@ -329,7 +330,7 @@ def write_eval(out_dir: str | Path, suites: list[Suite], jobs: list[Job], result
     meta = {"ata": __version__, "arguments": arguments,
             "suites": [{"path": s.path, "name": s.name, "content": s.raw} for s in suites],
             "jobs": [{"method": j.method, "setting": j.setting, "uncertainty": j.level,
-                      "scenarios": j.mission.settings.scenarios, "seed": j.mission.settings.seed,
+                      "scenarios": j.mission.settings.scenarios, "seed": j.mission.seed_label,
                       "first_scenario": j.mission.settings.first_scenario,
                       "mission": j.mission.source} for j in jobs],
             "rows": len(result.rows), "wall_s": result.wall_s,

@@ -36,9 +36,11 @@ REQUIRED = ("method", "setting", "uncertainty", "scenario", "seed", "score", "up
 """The columns an evaluation's results.csv must have."""
 RUN_REQUIRED = ("scenario", "score", "upper_bound", "fraction_of_u")
 """Those of an `ata run` folder's results.csv; the others come from its resolved mission."""
-TEXT_COLUMNS = ("method", "setting", "uncertainty")
-INT_COLUMNS = ("scenario", "seed")
-"""results.csv's columns of text and of integers; every other column holds numbers (blank: NaN)."""
+TEXT_COLUMNS = ("method", "setting", "uncertainty", "seed")
+INT_COLUMNS = ("scenario",)
+"""results.csv's columns of text and of integers; every other column holds numbers (blank: NaN).
+The seed is kept as text: an integer, or the ``secret:`` hash of a secret one; rows pair on
+it."""
 Cell = tuple[str, str, str]
 """(method, setting, uncertainty level)."""
 
@@ -115,6 +117,8 @@ class _NotFinite(ValueError):
 
 def _parse(column: str, text: str) -> Any:
     """One cell of results.csv as its column's type; ValueError when it is not one."""
+    if column == "seed":
+        return text if text.startswith("secret:") else str(int(text))
     if column in TEXT_COLUMNS:
         return text
     if column in INT_COLUMNS:
@@ -131,7 +135,7 @@ def _run_cell(folder: Path) -> dict[str, Any]:
     try:
         mission = tomllib.loads(path.read_text(encoding="utf-8"))["mission"]
         return {"method": str(mission["name"]), "setting": str(mission["setting"]),
-                "uncertainty": str(mission["uncertainty"]), "seed": int(mission["seed"])}
+                "uncertainty": str(mission["uncertainty"]), "seed": str(mission["seed"])}
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, KeyError, TypeError,
             ValueError) as exc:
         raise MissionError("", None, f"cannot read the run's mission (name, setting, "
@@ -254,11 +258,11 @@ def paired(a: Results, sel_a: np.ndarray, b: Results, sel_b: np.ndarray,
     `Results.select`), on the scenarios both ran (same seed and id), in pairs, in the order of
     b's rows."""
     ca, cb = a.columns, b.columns
-    key_a = {(int(s), int(i)): k for k, s, i in zip(np.nonzero(sel_a)[0], ca["seed"][sel_a],
+    key_a = {(str(s), int(i)): k for k, s, i in zip(np.nonzero(sel_a)[0], ca["seed"][sel_a],
                                                    ca["scenario"][sel_a])}
-    pairs = [(key_a[(int(s), int(i))], k) for k, s, i in
+    pairs = [(key_a[(str(s), int(i))], k) for k, s, i in
              zip(np.nonzero(sel_b)[0], cb["seed"][sel_b], cb["scenario"][sel_b])
-             if (int(s), int(i)) in key_a]
+             if (str(s), int(i)) in key_a]
     if not pairs:
         return np.zeros(0), np.zeros(0)
     ia, ib = np.array(pairs).T

@@ -281,7 +281,7 @@ def summary_rows(session: Session, result: RunResult) -> list[tuple[str, str]]:
             ("uncertainty", f"{m.settings.uncertainty} (fatigue variance {m.fatigue_variance}, "
                             f"event probability {m.event_probability})"),
             ("scenarios", f"{s['scenarios']} (ids {first}..{first + s['scenarios'] - 1}, root "
-                          f"seed {m.settings.seed})"),
+                          f"seed {m.seed_label})"),
             ("team performance", f"{s['score_mean']:.1f}{ci}"),
             ("fraction of U", f"{s['fraction_of_u']:.3f} (U: the capacity-free bound)"),
             ("POIs classified", f"{100 * s.get('classified_share_mean', float('nan')):.1f}%"),

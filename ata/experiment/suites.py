@@ -16,7 +16,8 @@ SUITE_KEYS = {"name": "a label for the evaluation",
               "settings": "team settings to run every method at (a, b, custom)",
               "uncertainty": "uncertainty levels to run every method at",
               "scenarios": "scenarios per (method, setting, level)",
-              "seed": "root seed of the evaluation scenarios",
+              "seed": "root seed of the evaluation scenarios, or 'env:NAME' to read a secret "
+                      "one from the environment",
               "pairs": "the paired differences the suite is about, [[A, B], ...]: A - B in "
                        "the paired table of `ata report --markdown`"}
 METHOD_KEYS = {"name": "the method's label in results and reports",
@@ -55,7 +56,7 @@ class Suite:
     settings: list[str] | None = None
     levels: list[str] | None = None
     scenarios: int | None = None
-    seed: int | None = None
+    seed: int | str | None = None       # a str: 'env:NAME', a secret seed read at plan time
     own: bool = False
     raw: dict[str, Any] = field(default_factory=dict)
 
@@ -118,7 +119,9 @@ def load_suite(path: str | Path) -> Suite:
     if "scenarios" in head:
         suite.scenarios = _int(head["scenarios"], "[suite]", "scenarios", path, 1)
     if "seed" in head:
-        suite.seed = _int(head["seed"], "[suite]", "seed", path, 0)
+        seed = head["seed"]
+        suite.seed = seed if isinstance(seed, str) and seed.startswith("env:") \
+            else _int(seed, "[suite]", "seed", path, 0)
     pairs = head.get("pairs", [])
     if not isinstance(pairs, list) or not all(
             isinstance(p, list) and len(p) == 2 and all(isinstance(x, str) for x in p)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ata import hookimpl
-from ata.core.state import Observation, SimState
+from ata.core.state import DecisionView, Observation
 
 
 class IdentityReconstructor:
@@ -16,7 +16,7 @@ class IdentityReconstructor:
         pass
 
     @hookimpl
-    def ata_reconstruct(self, sim: SimState, obs: Observation, inherent: Observation,
+    def ata_reconstruct(self, sim: DecisionView, obs: Observation, inherent: Observation,
                         out: dict[str, np.ndarray]) -> None:
         for group, table in obs.items():
             out.setdefault(group, table.features)
@@ -37,7 +37,7 @@ class ArrivalReconstructor:
         self.prev_tasks: np.ndarray | None = None
 
     @hookimpl
-    def ata_reconstruct(self, sim: SimState, obs: Observation, inherent: Observation,
+    def ata_reconstruct(self, sim: DecisionView, obs: Observation, inherent: Observation,
                         out: dict[str, np.ndarray]) -> None:
         rob, tasks = obs["robots"], obs["tasks"]
         guess = np.zeros(tasks.features.shape[:2], dtype=bool)

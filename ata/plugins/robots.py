@@ -203,11 +203,10 @@ class RobotModel:
         pos = self.position(sim, now) / r.area_m
         feats = np.stack([pos[..., 0], pos[..., 1], r.idleness, ~r.failed, r.target], axis=-1)
         obs.add("robots", ROBOT_STATE, feats.astype(np.float64))
-        # a POI whose leg is under way stays with its robot until captured
-        committed = np.zeros((sim.batch_size, sim.sizes.tasks), dtype=bool)
-        b, rr = np.nonzero(np.isfinite(r.leg_start) & (r.target >= 0))
-        committed[b, r.target[b, rr]] = True
-        obs.restrict_reallocation(~committed)
+        # a POI whose leg is under way stays with its robot until captured: the robot's row
+        # holds it (a stale row, what it held when last observed)
+        on_leg = np.isfinite(r.leg_start) & (r.target >= 0)
+        obs.hold("robots", np.where(on_leg, r.target, -1), sim.sizes.tasks)
 
     @hookimpl
     def ata_allocation_changed(self, sim: SimState, changed: np.ndarray,

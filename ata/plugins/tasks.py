@@ -132,7 +132,8 @@ class PoiTaskModel:
                           np.where(revealed, t.true_kind, t.est_kind),
                           np.where(revealed, t.true_diff, t.est_diff)], axis=-1)
         obs.add("tasks", TASK_STATE, feats.astype(np.float64))
-        obs.restrict_reallocation(~captured)
+        # a captured POI's own row holds it: its triple may no longer change
+        obs.hold("tasks", np.where(captured, np.arange(sim.sizes.tasks), -1), sim.sizes.tasks)
 
     @hookimpl
     def ata_epoch_end(self, sim: SimState, epoch: int) -> None:

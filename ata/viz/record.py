@@ -171,7 +171,7 @@ class Episode:
     `ata.model.tables`."""
 
     mission: str
-    seed: int
+    seed: int | str               # the root seed, or the hash of a secret one
     scenario: int
     setting: str
     uncertainty: str
@@ -248,7 +248,7 @@ class Episode:
         changes = [(int(k), int((allocs[k] != allocs[k - 1]).any(axis=1).sum()))
                    for k in np.flatnonzero(rec.reallocated[b])]
         return cls(
-            mission=m.settings.name, seed=m.settings.seed, scenario=int(scenario),
+            mission=m.settings.name, seed=m.seed_label, scenario=int(scenario),
             setting=m.settings.setting, uncertainty=m.settings.uncertainty, horizon_s=horizon,
             epoch_s=clock.epoch_s, area_m=float(t["area_m"]),
             base=base,

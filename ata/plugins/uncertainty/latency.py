@@ -1,7 +1,7 @@
 """Latency: each robot's and each task's observed row is, with probability p, the one observed
-at the previous epoch. Human states have no latency (the humans are on site). A task whose row is
-stale is seen as reallocatable or not as it was at the previous epoch too (whether it had been
-captured, whether a robot was on its way to it): the observation's ``reallocatable``."""
+at the previous epoch. Human states have no latency (the humans are on site). A stale row holds
+what it held then: a stale task row shows its POI uncaptured if it was, a stale robot row the POI
+it was on its way to, and the observation's ``reallocatable`` follows the rows as shown."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import numpy as np
 
 from ata import hookimpl
 from ata.core.settings import param
-from ata.core.state import Observation, SimState
+from ata.core.state import EntityTable, Observation, SimState
 
 
 class Latency:
@@ -28,8 +28,7 @@ class Latency:
         self.p = (settings.probability if settings.probability is not None
                   else mission.event_probability)
         self.groups = list(settings.groups)
-        self.previous: dict[str, np.ndarray] = {}
-        self.previous_open: np.ndarray | None = None    # reallocatable as last observed
+        self.previous: dict[str, EntityTable] = {}
 
     @hookimpl
     def ata_inject(self, sim: SimState, obs: Observation) -> None:
@@ -39,14 +38,11 @@ class Latency:
             if prev is not None and self.p > 0:
                 stale = sim.rng.uniform(f"latency.{group}", sim.epoch,
                                         (table.features.shape[1],)) < self.p
-                table.features[:] = np.where(stale[..., None], prev, table.features)
+                # the row and what it holds (the POI a robot is on its way to, a captured
+                # POI): `reallocatable` is read off the rows as observed
+                table.keep_rows(stale, prev)
                 obs.extras[f"stale_{group}"] = stale
-                if group == "tasks" and obs.reallocatable is not None \
-                        and self.previous_open is not None:
-                    obs.reallocatable = np.where(stale, self.previous_open, obs.reallocatable)
-            self.previous[group] = table.features.copy()
-        if "tasks" in self.groups and obs.reallocatable is not None:
-            self.previous_open = obs.reallocatable.copy()
+            self.previous[group] = table.copy()
 
 
 @hookimpl
