@@ -206,7 +206,7 @@ def test_team_model_constants_and_decision_settings_reach_the_context_read_only(
     assert ctx.settings["greedy"].human_time_cost == 0.05
     # a policy that writes them changes no component's settings, and no published constant
     ctx.settings["greedy"].human_time_cost = 0.0
-    assert sim.pm.get_plugin("initial:greedy").settings.human_time_cost == 0.05
+    assert sim.pm.get_plugin("initial:greedy").s.human_time_cost == 0.05
     with pytest.raises(TypeError):
         ctx.settings["greedy"] = None
     with pytest.raises(dataclasses.FrozenInstanceError):
