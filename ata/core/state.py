@@ -13,6 +13,7 @@ from typing import Any, Iterable, Mapping, TypeVar
 import numpy as np
 
 from ata.core.errors import ContractError
+from ata.core.queues import Queue
 from ata.core.rng import BatchRNG, StreamRNG
 
 
@@ -251,70 +252,6 @@ class EpisodeRecord:
     def total(self) -> np.ndarray:
         """Total team performance per scenario: the sum of r_perf over the episode."""
         return self.r_perf.sum(axis=1)
-
-
-class Queue:
-    """Work passed from one model to another: the producer puts rows (columns of equal length,
-    one row per item, by name), the consumer takes every pending row at once, in the order put.
-
-    Models never write each other's arrays: a robot's capture, a human's work item, a
-    perturbation drawn at set-up travel as rows of a queue that the owner of the state takes.
-    """
-
-    def __init__(self, name: str):
-        self.name = name
-        self._parts: list[dict[str, np.ndarray]] = []
-        self._columns: tuple[str, ...] | None = None
-
-    def put(self, **columns: Any) -> None:
-        """Append rows: every column a 1-D array (or a scalar, broadcast) of one length."""
-        names = tuple(sorted(columns))
-        if self._columns is None:
-            self._columns = names
-        elif names != self._columns:
-            raise ValueError(f"queue {self.name!r} takes columns {', '.join(self._columns)}; "
-                             f"got {', '.join(names)}")
-        arrays = {k: np.atleast_1d(np.asarray(v)) for k, v in columns.items()}
-        n = max(a.shape[0] for a in arrays.values())
-        for k, a in arrays.items():
-            if a.ndim != 1 or a.shape[0] not in (1, n):
-                raise ValueError(f"queue {self.name!r}: column {k!r} has shape {a.shape}; "
-                                 f"expected ({n},)")
-            if a.shape[0] != n:
-                arrays[k] = np.repeat(a, n)
-        if n:
-            self._parts.append(arrays)
-
-    def __len__(self) -> int:
-        return sum(next(iter(p.values())).shape[0] for p in self._parts)
-
-    def take(self) -> dict[str, np.ndarray] | None:
-        """Every pending row, concatenated in the order put, and the queue emptied; None when
-        nothing is pending."""
-        if not self._parts:
-            return None
-        parts, self._parts = self._parts, []
-        if len(parts) == 1:
-            return parts[0]
-        return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-
-
-def scatter(state: Any, rows: dict[str, np.ndarray], at: tuple[str, ...],
-            columns: dict[str, str]) -> None:
-    """Write taken queue rows into the owner's arrays: ``state.FIELD[rows[at]] = rows[COLUMN]``
-    for each FIELD -> COLUMN of `columns` (`at` names the index columns, e.g. ("b", "p"))."""
-    index = tuple(rows[k] for k in at)
-    for name, column in columns.items():
-        getattr(state, name)[index] = rows[column]
-
-
-def last_per_key(*keys: np.ndarray) -> np.ndarray:
-    """Indices of the last row of each distinct key (rows taken in order: the latest wins)."""
-    n = keys[0].shape[0]
-    order = np.lexsort(tuple(reversed(keys)))           # by key, stable: rows in order per key
-    k = np.stack([key[order] for key in keys])
-    last = np.r_[np.any(k[:, 1:] != k[:, :-1], axis=0), True] if n else np.zeros(0, bool)
-    return order[last]
 
 
 class ReadOnlyState:

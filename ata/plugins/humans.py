@@ -30,7 +30,8 @@ import numpy as np
 
 from ata import hookimpl
 from ata.core.settings import param
-from ata.core.state import Allocation, Observation, SimState, last_per_key, scatter
+from ata.core.queues import last_per_key, scatter
+from ata.core.state import Allocation, Observation, SimState
 from ata.model import tables, team
 from ata.model.retask import retasked_humans
 from ata.model.team import HumanConstants

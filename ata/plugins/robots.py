@@ -28,7 +28,8 @@ import numpy as np
 
 from ata import hookimpl
 from ata.core.settings import param
-from ata.core.state import Allocation, Observation, SimState, scatter
+from ata.core.queues import scatter
+from ata.core.state import Allocation, Observation, SimState
 from ata.model import tables, team
 from ata.model.team import RobotConstants
 

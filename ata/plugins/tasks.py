@@ -19,7 +19,8 @@ import numpy as np
 
 from ata import hookimpl
 from ata.core.settings import param
-from ata.core.state import Observation, SimState, scatter
+from ata.core.queues import scatter
+from ata.core.state import Observation, SimState
 from ata.model import tables
 
 TASK_INHERENT = ("x", "y", "kind", "difficulty", "points")
