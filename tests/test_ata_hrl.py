@@ -446,6 +446,14 @@ def test_checkpoints_of_another_method_or_broken_are_refused(tmp_path, cli):
         assert res.exit_code == 2, res.output
         assert message.split(",")[0] in " ".join(res.output.split())
         assert "Traceback" not in res.output
+    # a checkpoint of the layout before pi_C's rule was part of every network is refused
+    from ata.plugins.ata_hrl.checkpoint import net_from_checkpoint
+    old = tmp_path / "old.pt"
+    torch.save({**data, "format": 2}, old)
+    with pytest.raises(CheckpointError, match="of format 2; this version reads format 3"):
+        net_from_checkpoint(read_checkpoint(old, "ata_hrl"), old)
+    with pytest.raises(CheckpointError, match="of format 2"):
+        trainer.take_ita(str(old))
 
 
 # --- the auxiliary reconstruction -------------------------------------------------------------------
