@@ -340,7 +340,7 @@ def train(mission: Optional[str] = typer.Argument(
                                                 help="Resume the run in this folder."),
           quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar.")) -> None:
     """Train the learned components of a mission with the trainer it names (ata_hrl: ATA-HRL
-    and its ablations; dqn: the TR-POMDP agents, also after the attention ITA for AtRL-TR)."""
+    and its ablations; tr_pomdp: the TR-POMDP agents, also after the attention ITA for AtRL-TR)."""
     from ata.experiment import runner
     from ata.experiment.execute import prepare_out_dir
     from ata.training import TrainRun

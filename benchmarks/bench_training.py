@@ -32,6 +32,7 @@ from rich.table import Table
 from ata.core.kernel import Simulation, build_component
 from ata.experiment.runner import BASELINE_MISSION, build_trainer, load_session, training_mission_for
 from ata.plugins.ata_hrl.components import AttentionITA
+from ata.plugins.ata_hrl.phases.policy import rewards
 
 
 def timed(fn, repeats: int) -> tuple[float, dict]:
@@ -57,7 +58,7 @@ def main() -> None:
               f"ata_hrl.samples={K}"]
     session = load_session(str(training_mission_for(["ctr", "aux"])), common)
     trainer = build_trainer(session)
-    mission = trainer._mission(args.setting, 777)
+    mission = trainer.mission_of(args.setting, 777)
     ids = lambda i: np.repeat(np.arange(B) + 1000 * i, K)  # noqa: E731
     greedy = load_session(str(BASELINE_MISSION), [f"mission.setting='{args.setting}'"])
 
@@ -77,21 +78,20 @@ def main() -> None:
                                   "reconstructors": identity}).run()
         return run
 
-    def step(phase: str):
+    def step(part):
         def run(i):
             t0 = time.perf_counter()
-            record, rec = trainer.rollout(mission, ids(i), phase, train=True)
+            record, rec = trainer.rollout(mission, ids(i), part.name, train=True)
             t1 = time.perf_counter()
-            _, loss = trainer.rewards_and_loss(phase, record, rec)
-            trainer.update(loss)
+            part.update(part.loss(rec, rewards(record)))
             return {"rollout": t1 - t0, "update": time.perf_counter() - t1}
         return run
 
     rows = [("simulator + greedy (no network)", simulator),
             ("ITA decoder, prior alone (no network)", ita(False)),
             ("ITA decoder with the network (mode)", ita(True)),
-            ("ITA training step (rollout + update)", step("ita")),
-            ("pi_C / pi_TR training step (rollout + update)", step("ctr"))]
+            ("ITA training step (rollout + update)", step(trainer.ita)),
+            ("pi_C / pi_TR training step (rollout + update)", step(trainer.ctr))]
     table = Table(title=f"ATA-HRL training throughput, setting ({args.setting}), {B} scenarios x "
                         f"{K} samples = {n} episodes, 1 torch thread")
     for col in ("what", "seconds", "episodes/s", "x simulator", "rollout s", "update s"):

@@ -12,7 +12,7 @@ import torch
 
 from _support import train, whole_and_killed
 from ata.core.errors import MissionError
-from ata.core.kernel import Simulation
+from ata.core.kernel import Simulation, build_component
 from ata.experiment.runner import (BASELINE_MISSION, build_trainer, load_session,
                              training_mission_for)
 from ata.core.state import Allocation
@@ -20,7 +20,7 @@ from ata.model import tables
 from ata.plugins.ata_hrl.components import AttentionITA, AuxReconstructor, CTRPolicy
 from ata.plugins.ata_hrl.decoder import DecodeSettings, Decoder
 from ata.plugins.ata_hrl.network import ATAHRLNet, NetConfig
-from ata.plugins.ata_hrl.trainer import shared_baseline_advantage
+from ata.plugins.ata_hrl.phases.policy import shared_baseline_advantage
 from ata.model.plan import PlanStart
 from ata.training import CheckpointError, read_checkpoint
 
@@ -180,7 +180,20 @@ def test_an_untrained_network_decides_as_its_prior_alone():
             .run() for learned in (True, False)]
     np.testing.assert_array_equal(runs[0].allocations, runs[1].allocations)
     np.testing.assert_array_equal(runs[0].reallocated, runs[1].reallocated)
-    assert runs[0].reallocated.any()
+    # and pi_C decides exactly as the on_event condition does in its place, on the same state
+    # (the observed one: an untrained aux module's rows are not)
+    def run(condition):
+        over = components(s, net)
+        over["reconstructors"] = build_component(s.registry, s.mission, "reconstructor",
+                                                 "identity")
+        if condition:
+            over["condition"] = build_component(s.registry, s.mission, "condition", condition)
+        return Simulation(s.mission, s.registry, [0, 1, 2], overrides=over).run()
+
+    pi_c, on_event = run(None), run("on_event")
+    np.testing.assert_array_equal(pi_c.reallocated, on_event.reallocated)
+    np.testing.assert_array_equal(pi_c.allocations, on_event.allocations)
+    assert pi_c.reallocated[:, 1:].sum(1).tolist() == [2, 2, 1]     # the epochs with events
 
 
 def test_sampled_decisions_do_not_depend_on_the_batch():
@@ -200,45 +213,63 @@ def test_sampled_decisions_do_not_depend_on_the_batch():
 
 
 def test_the_shipped_ita_is_trained_and_decides_otherwise_than_its_prior():
-    # ata/weights/ata_hrl_a.pt: the learned part of the ITA is not zero, and it changes the
-    # initial allocations of held-out scenarios (ids 2^40 on) against the prior alone; the
-    # checkpoint names where its ITA came from (round 10's file: the round-7 one it started
-    # from, `init_from`, whose ITA came from another run, `ita_from`)
+    # ata/weights/ata_hrl_a.pt records where it came from (docs/training.md, "Provenance"): the
+    # cond phase's one fit on the file it started from, whose ITA the three (a) files share
     from ata.training import WEIGHTS
     data = read_checkpoint(WEIGHTS / "ata_hrl_a.pt", "ata_hrl")
-    assert "ita" in data["trained"] and (data["ita_from"] or data["init_from"])
-    learned_out = [v for k, v in data["model"].items()
-                   if k.startswith("ita.scorers.") and ".linear." in k]
-    assert learned_out and any(v.abs().sum() > 0 for v in learned_out)
+    assert data["trained"] == ["ita", "cond", "tr", "aux"]
+    assert (data["init_from"], data["ita_from"]) == ("builtin:ata_hrl_a", "")
+    assert data["counters"] == {"aux": 0, "status": 0, "ita": 0, "cond": 1, "ctr": 0,
+                                "episodes": 7380}
+    for other in ("ata_hrl_wo_aux_a", "ata_hrl_wo_c_a"):
+        model = read_checkpoint(WEIGHTS / f"{other}.pt", "ata_hrl")["model"]
+        assert all(torch.equal(model[k], v) for k, v in data["model"].items()
+                   if k.startswith("ita.")), other
+    # with its learned part off it decides as an untrained network (the prior alone); on, it
+    # changes the initial triples of 52, 56 and 51 of the 60 POIs of three held-out scenarios
     mission = str(WEIGHTS.parents[1] / "examples" / "missions" / "ata_hrl_a.toml")
-    common = ["components.condition='never'"]
     ids = np.arange(3) + 2 ** 40
     runs = []
     for flag in ("true", "false"):
-        s = load_session(mission, [*common, f"attention.learned={flag}"])
+        s = load_session(mission, ["components.condition='never'", f"attention.learned={flag}"])
         runs.append(Simulation(s.mission, s.registry, ids).run())
-    assert all(np.isfinite(r.total).all() for r in runs)
-    assert not np.array_equal(runs[0].allocations, runs[1].allocations)
+    untrained = AttentionITA(AttentionITA.Settings(), s.mission, net=ATAHRLNet(NetConfig()))
+    prior = Simulation(s.mission, s.registry, ids, overrides={"initial": untrained}).run()
+    np.testing.assert_array_equal(runs[1].allocations, prior.allocations)
+    changed = (runs[0].allocations[:, 0] != runs[1].allocations[:, 0]).any(-1).sum(1)
+    assert changed.tolist() == [52, 56, 51]
 
 
 def test_the_shipped_ata_hrl_and_wo_aux_weights_carry_a_fitted_rule_and_wo_c_none():
-    # round 10 (docs/training.md, "Shipped weights"): pi_C's logistic rule, fitted in the cond
-    # phase, is on in the full method's files, and w/o.AUX's carry the same rule: the two
-    # networks differ in the aux module's tensors alone (which w/o.AUX does not run); w/o.C
-    # decides at every epoch
+    # pi_C's logistic rule, fitted in the cond phase, is on in the full method's files, and
+    # w/o.AUX's carry the same rule: the two networks differ in the aux module's tensors alone
+    # (which w/o.AUX does not run); w/o.C decides at every epoch, and its rule is zero and off
     from ata.training import WEIGHTS
+    rules = {}
     for name in ("ata_hrl_a", "ata_hrl_b_ft", "ata_hrl_wo_aux_a", "ata_hrl_wo_aux_b_ft"):
         data = read_checkpoint(WEIGHTS / f"{name}.pt", "ata_hrl")
-        assert data["config"].get("cond_rule") and "cond" in data["counters"], name
-        assert data["model"]["cond.linear.on"] == 1, name
-        assert data["model"]["cond.linear.weight"].abs().sum() > 0, name
+        assert data["format"] == 3 and data["counters"]["cond"] == 1, name
+        assert data["model"]["cond.rule.on"] == 1, name
+        rules[name] = data["model"]["cond.rule.weight"][0]
+    # the fitted weights: the (a) rule weighs the time since the last re-plan (feature 5)
+    # +3.21, the feature whose sign the findings show its gain rests on; feature 0 (an event
+    # is seen) is 1 at every labelled event epoch, so it is constant and weighs 0
+    np.testing.assert_allclose(rules["ata_hrl_a"], [
+        0.0, -1.3583680, -0.4508739, 2.0655367, 0.1631253, 3.2142467, -0.4593706, -1.9467671,
+        1.3690711, -0.0990900], atol=1e-6)
+    np.testing.assert_allclose(rules["ata_hrl_b_ft"], [
+        0.0, 1.1971453, 2.5776916, -1.6674860, -0.0253270, 2.4036999, -1.4168044, -2.1509871,
+        0.3256063, -0.5078123], atol=1e-6)
     for full, wo_aux in (("ata_hrl_a", "ata_hrl_wo_aux_a"), ("ata_hrl_b_ft", "ata_hrl_wo_aux_b_ft")):
         a = read_checkpoint(WEIGHTS / f"{full}.pt", "ata_hrl")["model"]
         b = read_checkpoint(WEIGHTS / f"{wo_aux}.pt", "ata_hrl")["model"]
         differ = {k for k in a if k not in b or not torch.equal(a[k], b[k])}
-        assert differ and all(k.startswith(("fatigue.", "latency.", "status.")) for k in differ), differ
+        assert {k.split(".")[0] for k in differ} == ({"fatigue", "latency", "status"}
+                                                     if full == "ata_hrl_b_ft" else
+                                                     {"fatigue", "latency"}), differ
     for name in ("ata_hrl_wo_c_a", "ata_hrl_wo_c_b_ft"):
-        assert "cond.linear.on" not in read_checkpoint(WEIGHTS / f"{name}.pt", "ata_hrl")["model"]
+        model = read_checkpoint(WEIGHTS / f"{name}.pt", "ata_hrl")["model"]
+        assert model["cond.rule.on"] == 0 and not model["cond.rule.weight"].any()
 
 
 @pytest.mark.slow
@@ -327,17 +358,25 @@ def test_ita_from_shares_an_ita_and_init_from_trains_on(tmp_path):
 
 # the rule's rounds need event epochs where pi_C re-plans, which the tiny team's short episodes
 # and an untrained pi_C lack: setting (a), from the shipped weights
-RULE_ROUNDS = ("ata_hrl.cond_scenarios=2", "ata_hrl.cond_fit='rule'", "ata_hrl.cond_rounds=2",
+RULE_ROUNDS = ("ata_hrl.cond_scenarios=2", "ata_hrl.cond_rounds=2",
                "ata_hrl.init_from='builtin:ata_hrl_a'", "ata_hrl.aux_steps=0",
                "ata_hrl.ita_steps=0", "ata_hrl.ctr_steps=0")
 
 
+def log_rows(run_dir) -> list[dict]:
+    """log.csv's rows without the columns that time the run."""
+    import csv
+    with open(run_dir / "log.csv", newline="") as f:
+        return [{k: v for k, v in r.items() if k not in ("wall_s", "episodes_per_s")}
+                for r in csv.DictReader(f)]
+
+
 @pytest.mark.parametrize("phase, step, extra", [
     ("aux", "2", ()), ("status", "2", ()), ("ita", "1", ()),
-    ("cond", "0", ("ata_hrl.cond_scenarios=2", "ata_hrl.cond_steps=2")),
+    pytest.param("cond", "0", RULE_ROUNDS, marks=pytest.mark.slow),  # before any checkpoint
     ("cond", "2", RULE_ROUNDS),    # killed in the rule's second round, the first saved
     ("ctr", "2", ())])
-def test_resume_after_kill_ends_with_the_same_weights(tmp_path, phase, step, extra):
+def test_resume_after_kill_ends_with_the_same_weights_and_log(tmp_path, phase, step, extra):
     s = session(*extra) if extra is not RULE_ROUNDS else load_session(
         str(training_mission_for(["ctr", "aux"])),
         [*(k for k in TINY if not k.startswith(("mission.", "ata_hrl.d_model", "ata_hrl.hidden",
@@ -345,8 +384,38 @@ def test_resume_after_kill_ends_with_the_same_weights(tmp_path, phase, step, ext
          *extra])
     whole, resumed = whole_and_killed(s, tmp_path, phase, step)
     assert resumed.counters == whole.counters
-    for (k, a), (_, b) in zip(whole.net.state_dict().items(), resumed.net.state_dict().items()):
-        assert torch.equal(a, b), k
+    assert whole.net.state_dict().keys() == resumed.net.state_dict().keys()
+    for k, a in whole.net.state_dict().items():
+        assert torch.equal(a, resumed.net.state_dict()[k]), k
+    assert log_rows(tmp_path / "broken") == log_rows(tmp_path / "whole")
+
+
+@pytest.mark.parametrize("name", ["ata_hrl_a", "ata_hrl_b", "ata_hrl_b_ft", "ata_hrl_wo_aux_a",
+                                  "ata_hrl_wo_aux_b", "ata_hrl_wo_aux_b_ft", "ata_hrl_wo_c_a",
+                                  "ata_hrl_wo_c_b", "ata_hrl_wo_c_b_ft"])
+def test_a_shipped_checkpoint_resumes_under_the_mission_it_records(tmp_path, name):
+    # each shipped file, with the training mission it records, is a run folder that `ata
+    # train --resume` carries on: its trainer takes the networks, optimisers, generators and
+    # counters; ata_hrl_a's run is done, and resuming it changes no weight
+    from ata.training import WEIGHTS
+    data = read_checkpoint(WEIGHTS / f"{name}.pt", "ata_hrl")
+    (tmp_path / "mission.resolved.toml").write_text(data["mission"])
+    (tmp_path / "checkpoint.pt").write_bytes((WEIGHTS / f"{name}.pt").read_bytes())
+    # an ita_from that names a run folder of its time (not shipped; its ITA is in the file)
+    # is left out: the trainer would list that run's scenario ranges
+    unshipped = ["ata_hrl.ita_from=''"] if data["ita_from"].startswith("runs/") else []
+    trainer = build_trainer(load_session(str(tmp_path / "mission.resolved.toml"), unshipped))
+    trainer.load(tmp_path / "checkpoint.pt")
+    zero = {"aux": 0, "status": 0, "ita": 0, "cond": 0, "ctr": 0, "episodes": 0}
+    assert trainer.counters == {**zero, **data["counters"]}
+    assert all(torch.equal(v, data["model"][k]) for k, v in trainer.net.state_dict().items())
+    if name == "ata_hrl_a":
+        again = train(load_session(str(tmp_path / "mission.resolved.toml")), tmp_path,
+                      resume=True)
+        assert again.counters == data["counters"]
+        model = read_checkpoint(tmp_path / "checkpoint.pt", "ata_hrl")["model"]
+        assert model.keys() == data["model"].keys()
+        assert all(torch.equal(model[k], v) for k, v in data["model"].items())
 
 
 # --- checkpoints -------------------------------------------------------------------------------------
@@ -377,6 +446,14 @@ def test_checkpoints_of_another_method_or_broken_are_refused(tmp_path, cli):
         assert res.exit_code == 2, res.output
         assert message.split(",")[0] in " ".join(res.output.split())
         assert "Traceback" not in res.output
+    # a checkpoint of the layout before pi_C's rule was part of every network is refused
+    from ata.plugins.ata_hrl.checkpoint import net_from_checkpoint
+    old = tmp_path / "old.pt"
+    torch.save({**data, "format": 2}, old)
+    with pytest.raises(CheckpointError, match="of format 2; this version reads format 3"):
+        net_from_checkpoint(read_checkpoint(old, "ata_hrl"), old)
+    with pytest.raises(CheckpointError, match="of format 2"):
+        trainer.take_ita(str(old))
 
 
 # --- the auxiliary reconstruction -------------------------------------------------------------------
@@ -387,9 +464,9 @@ def test_reconstructors_beat_the_noisy_and_stale_observations(tmp_path):
                 "ata_hrl.ita_steps=0", "ata_hrl.ctr_steps=0")
     trainer = build_trainer(s)
     from ata.training import TrainRun
-    trainer.run_folder = TrainRun(tmp_path, s.mission.to_toml(), trainer.log_fields)
-    before = trainer.aux_report()
-    after = trainer.train_aux()             # held-out scenarios, not trained on
+    trainer.loop.run = TrainRun(tmp_path, s.mission.to_toml(), trainer.log_fields)
+    before = trainer.aux.report()
+    after = trainer.loop.run_phase(trainer.aux.phase())    # held-out scenarios, not trained on
     # the cVAE's fatigue is closer to the truth than the noisy observation (variance 0.2)
     assert after["fatigue_mse"] < 0.5 * after["fatigue_mse_raw"]
     # the stacked GRUs' robot rows are closer to the truth than the stale observed rows
@@ -397,7 +474,7 @@ def test_reconstructors_beat_the_noisy_and_stale_observations(tmp_path):
     assert after["fatigue_mse"] < before["fatigue_mse"]
 
 
-def test_aux_loss_chooses_the_grus_loss_and_the_log_keeps_their_squared_error():
+def test_the_aux_losses_are_the_cvae_loss_and_the_grus_squared_errors():
     from ata.plugins.ata_hrl.network import S_DIMS
     gen = torch.Generator().manual_seed(0)
     data = {"fatigue_in": torch.rand(20, 3, generator=gen),
@@ -405,20 +482,19 @@ def test_aux_loss_chooses_the_grus_loss_and_the_log_keeps_their_squared_error():
     for g in ("robots", "tasks"):
         data[f"{g}_in"] = torch.rand(6, 4, S_DIMS[g], generator=gen)
         data[f"{g}_target"] = torch.rand(6, 4, S_DIMS[g], generator=gen)
-    got = {}
-    for loss in ("mse", "l1"):
-        trainer = build_trainer(session(f"ata_hrl.aux_loss='{loss}'", "ata_hrl.seed=3"))
-        with torch.no_grad():
-            _, _, lat, lat_mse = trainer.aux_losses(data, sample=False)
-            err = {g: trainer.net.latency[g](data[f"{g}_in"])[0] - data[f"{g}_target"]
-                   for g in ("robots", "tasks")}
-        want = sum((e.abs() if loss == "l1" else e * e).mean() for e in err.values())
-        assert torch.allclose(lat, want)
-        assert torch.allclose(lat_mse, sum((e * e).mean() for e in err.values()))
-        got[loss] = lat_mse
-    assert torch.equal(got["mse"], got["l1"])        # the same networks: the seed made them
-    with pytest.raises(MissionError):
-        build_trainer(session("ata_hrl.aux_loss='huber'"))
+    trainer = build_trainer(session("ata_hrl.seed=3"))
+    net = trainer.net
+    with torch.no_grad():
+        cvae, f_mse, lat_mse = trainer.aux.losses(data, sample=False)
+        recon, mu, logvar = net.fatigue(*data["fatigue_in"].T, sample=False)
+        err = {g: net.latency[g](data[f"{g}_in"])[0] - data[f"{g}_target"]
+               for g in ("robots", "tasks")}
+    # ||f - f_hat||^2 + 0.1 KL, averaged; the KL of N(mu, exp(logvar)) against N(0, 1)
+    kl = 0.5 * (mu ** 2 + logvar.exp() - 1 - logvar).sum(-1)
+    want = ((recon - data["fatigue_target"]) ** 2 + 0.1 * kl).mean()
+    assert torch.allclose(cvae, want, rtol=1e-6)
+    assert torch.allclose(f_mse, ((recon - data["fatigue_target"]) ** 2).mean())
+    assert torch.allclose(lat_mse, sum((e * e).mean() for e in err.values()))
 
 
 def test_the_trainer_cycles_through_uncertainty_levels_and_validates_on_each(tmp_path,
@@ -469,12 +545,12 @@ def test_a_turned_over_condition_decision_changes_that_epoch_alone():
     s = session("ata_hrl.cond_scenarios=2", "mission.uncertainty='high'",
                 "mission.horizon_s=1800")
     tr = build_trainer(s)
-    mission = tr._mission("a/high", 5)
+    mission = tr.mission_of("a/high", 5)
     ids = np.arange(3)
-    base = Simulation(mission, s.registry, ids, overrides=tr._overrides(mission, "ctr", None,
-                                                                        None)).run()
+    base = Simulation(mission, s.registry, ids, overrides=tr.overrides(mission, "ctr", None,
+                                                                       None)).run()
     flip = np.array([1, 4, 9])
-    overrides = tr._overrides(mission, "ctr", None, None)
+    overrides = tr.overrides(mission, "ctr", None, None)
     overrides["condition"].flip_at = flip
     turned = Simulation(mission, s.registry, ids, overrides=overrides).run()
     for i, f in enumerate(flip):
@@ -483,140 +559,101 @@ def test_a_turned_over_condition_decision_changes_that_epoch_alone():
         assert np.array_equal(turned.r_expected[i, :f], base.r_expected[i, :f])
 
 
-def test_the_cond_phase_labels_by_counterfactual_runs_and_fits_pi_c_alone():
-    # with the shipped (a) weights on two (a) scenarios at high uncertainty: each turned-over
-    # decision's gain is what a run turned over there alone gives from that epoch on, and the
-    # fit moves pi_C's weights only, towards the better choices
-    s = load_session(str(training_mission_for(["ctr", "aux"])),
-                     ["ata_hrl.cond_scenarios=2", "ata_hrl.cond_steps=5",
-                      "ata_hrl.batch_size=2"])
-    tr = build_trainer(s)
+def shipped_cond_trainer(*extra):
+    """A trainer of the full method with a cond phase, its networks the shipped (a) ones but
+    for pi_C's rule (left off, as init_from leaves it)."""
+    tr = build_trainer(load_session(str(training_mission_for(["ctr", "aux"])),
+                                    ["ata_hrl.cond_scenarios=2", *extra]))
     tr.take_ita("builtin:ata_hrl_a", whole=True)
-    mission = tr._mission("a/high", 77)
+    return tr
+
+
+def test_the_cond_phase_labels_each_replan_by_a_run_turned_over_there_alone():
+    # on two (a) scenarios at high uncertainty, with the rule off: the labelled epochs are
+    # those where the policy re-planned, and a label's gain, the weight with the sign of "the
+    # other choice did better", is what a run of that scenario turned over at that epoch alone
+    # gives from that epoch on (scenario 0's first, middle and last labels, one run each)
+    tr = shipped_cond_trainer("ata_hrl.batch_size=2")
+    assert not tr.net.cond.rule_on()
+    mission = tr.mission_of("a/high", 77)
     ids = np.array([3, 4])
-    b = tr.cond_batch(mission, ids)
-    rows, epochs = np.nonzero(b["labelled"])
-    assert rows.size > 0 and b["episodes"] == 2 + rows.size
-    assert np.array_equal(b["labelled"], b["taken"])        # cond_epochs = "events"
-    assert (b["weight"] > 0).any()
-    # one of them again, by hand: the base run and a run turned over at that epoch alone
-    j = int(np.argmax(b["weight"][rows, epochs]))
-    r, e = rows[j], epochs[j] + 1
-    runs = []
-    for flip in (None, np.array([e])):
-        overrides = tr._overrides(mission, "ctr", None, None)
+    b = tr.cond.batch(mission, ids)
+    np.testing.assert_array_equal(b["labelled"], b["taken"])
+    assert b["episodes"] == 2 + b["labelled"].sum()
+    assert not b["weight"][~b["labelled"]].any()
+
+    def run(flip):
+        overrides = tr.overrides(mission, "ctr", None, None)
         overrides["condition"].flip_at = flip
-        rec = Simulation(mission, s.registry, ids[r:r + 1], overrides=overrides).run()
-        runs.append(rec.r_expected[0, e:].sum())
-    assert runs[1] - runs[0] == pytest.approx(b["weight"][r, e - 1] * (
-        1 if b["target"][r, e - 1] != b["taken"][r, e - 1] else -1), abs=1e-6)
-    before = {k: v.clone() for k, v in tr.net.state_dict().items()}
-    opt = torch.optim.Adam(tr.net.cond.parameters(), lr=1e-2)
-    losses = []
-    for _ in range(5):
-        loss = tr.cond_loss([b])
-        losses.append(loss.item())
-        opt.zero_grad()
-        loss.backward()
-        opt.step()
-    assert losses[-1] < losses[0]
-    changed = {k for k, v in tr.net.state_dict().items() if not torch.equal(v, before[k])}
-    assert changed and all(k.startswith("cond.") for k in changed)
-    # cond_fit = "features": a linear residual on the condition features at event epochs
-    # alone; the rest of the network is made and loaded as before, and stays
-    lin = build_trainer(load_session(str(training_mission_for(["ctr", "aux"])), [
-        "ata_hrl.cond_scenarios=2", "ata_hrl.cond_fit='features'"]))
-    lin.take_ita("builtin:ata_hrl_a", whole=True)
-    before = {k: v.clone() for k, v in lin.net.state_dict().items()}
-    assert set(before) - set(tr.net.state_dict()) == {"cond.linear.weight", "cond.linear.bias"}
-    opt = torch.optim.Adam(lin.net.cond.linear.parameters(), lr=1e-2)
-    for _ in range(5):
-        loss = lin.cond_loss([b])
-        opt.zero_grad()
-        loss.backward()
-        opt.step()
-    changed = {k for k, v in lin.net.state_dict().items() if not torch.equal(v, before[k])}
-    assert changed == {"cond.linear.weight", "cond.linear.bias"}
-    feats, prior = b["feats"][:, 0], torch.tensor([1.0, -1.0])
-    hidden = torch.zeros(2, lin.cfg.d_model)
-    with torch.no_grad():
-        logit, _ = lin.net.cond(b["pooled"][:, 0], feats, prior, hidden)
-        bare, _ = lin.net.cond(b["pooled"][:, 0], feats, prior, hidden, residual=False)
-    assert logit[1] == bare[1] and logit[0] != bare[0]     # a quiet epoch keeps the prior
+        return Simulation(mission, tr.registry, ids[:1], overrides=overrides).run()
+
+    base = run(None)
+    (epochs,) = np.nonzero(b["labelled"][0])
+    assert epochs.size >= 3
+    for e in epochs[[0, epochs.size // 2, -1]] + 1:       # labels are of epochs 1 .. T-1
+        sign = 1 if b["target"][0, e - 1] != b["taken"][0, e - 1] else -1
+        gain = run(np.array([e])).r_expected[0, e:].sum() - base.r_expected[0, e:].sum()
+        assert gain == pytest.approx(sign * b["weight"][0, e - 1], abs=1e-6), e
 
 
-def test_the_cond_phase_rule_fit_decides_event_epochs_by_a_weighted_logistic_regression(
-        tmp_path):
-    # cond_fit = "rule": the labels are collected with pi_C as the network decides (the rule
-    # is off until fitted); the fit is the optimum of the weighted, L2-penalised logistic
-    # regression on the standardised features; then event epochs follow the rule alone and
-    # quiet epochs the network; only cond.linear.* changes
+def test_the_rule_is_the_weighted_logistic_regression_and_decides_event_epochs_alone(tmp_path):
+    # the fit is the optimum of the weighted, L2-penalised logistic regression on the
+    # standardised features; then event epochs follow the rule alone and quiet epochs the
+    # network; only cond.rule.* changes, and a checkpoint holds the rule switched on
     from ata.plugins.ata_hrl.checkpoint import net_from_checkpoint
-    from ata.plugins.ata_hrl.trainer import fit_rule
-    tr = build_trainer(load_session(str(training_mission_for(["ctr", "aux"])), [
-        "ata_hrl.cond_scenarios=2", "ata_hrl.batch_size=3"]))
-    rule = build_trainer(load_session(str(training_mission_for(["ctr", "aux"])), [
-        "ata_hrl.cond_scenarios=2", "ata_hrl.batch_size=3", "ata_hrl.cond_fit='rule'"]))
-    for t in (tr, rule):
-        t.take_ita("builtin:ata_hrl_a", whole=True)
-    assert rule.phases()["cond"] == 1 and rule.net.cond.linear.on == 0
-    mission = tr._mission("a/high", 77)
-    ids = np.array([3, 4, 5])
-    b0, b = tr.cond_batch(mission, ids), rule.cond_batch(mission, ids)
-    assert np.array_equal(b0["taken"], b["taken"]) and np.array_equal(b0["weight"], b["weight"])
-    before = {k: v.clone() for k, v in rule.net.state_dict().items()}
-    fit_rule(rule.net.cond.linear, [b], 1e-2)
-    changed = {k for k, v in rule.net.state_dict().items() if not torch.equal(v, before[k])}
-    assert changed == {"cond.linear.weight", "cond.linear.bias", "cond.linear.on"}
+    from ata.plugins.ata_hrl.phases.cond import fit_rule
+    tr = shipped_cond_trainer("ata_hrl.batch_size=3")
+    assert tr.phases()["cond"] == 1 and tr.net.cond.rule.on == 0
+    b = tr.cond.batch(tr.mission_of("a/high", 77), np.array([3, 4, 5]))
+    feats, prior = b["feats"][:, 0], torch.tensor([1.0, -1.0, 1.0])
+    hidden = torch.zeros(3, tr.cfg.d_model)
+    with torch.no_grad():
+        net, _ = tr.net.cond(b["pooled"][:, 0], feats, prior, hidden)
+    before = {k: v.clone() for k, v in tr.net.state_dict().items()}
+    fit_rule(tr.net.cond.rule, [b], 1e-2)
+    changed = {k for k, v in tr.net.state_dict().items() if not torch.equal(v, before[k])}
+    assert changed == {"cond.rule.weight", "cond.rule.bias", "cond.rule.on"}
     # the optimum: the penalised objective's gradient, in the standardised features, is zero
     m = b["labelled"] & (b["prior"].numpy() > 0)
     F = b["feats"].numpy()[m].astype(np.float64)
     t, w = b["target"][m].astype(np.float64), b["weight"][m] / b["weight"][m].sum()
     mu, sd = F.mean(0), F.std(0) + 1e-9
-    lin = rule.net.cond.linear
-    beta_w = lin.weight.detach().double().numpy()[0] * sd
-    beta = np.r_[beta_w, lin.bias.item() + np.sum(beta_w * mu / sd)]
+    rule = tr.net.cond.rule
+    beta_w = rule.weight.detach().double().numpy()[0] * sd
+    beta = np.r_[beta_w, rule.bias.item() + np.sum(beta_w * mu / sd)]
     X = np.c_[(F - mu) / sd, np.ones(len(F))]
     p = 1 / (1 + np.exp(-X @ beta))
     assert np.abs(X.T @ ((p - t) * w) + 1e-2 * beta).max() < 1e-4
-    assert np.abs(beta).max() > 1e-3                       # it fitted something
-    feats, prior = b["feats"][:, 0], torch.tensor([1.0, -1.0, 1.0])
-    hidden = torch.zeros(3, rule.cfg.d_model)
     with torch.no_grad():
-        logit, _ = rule.net.cond(b["pooled"][:, 0], feats, prior, hidden)
-        net, _ = tr.net.cond(b["pooled"][:, 0], feats, prior, hidden)
-        alone = lin(feats)[:, 0]
+        logit, _ = tr.net.cond(b["pooled"][:, 0], feats, prior, hidden)
+        alone = rule(feats)[:, 0]
     assert logit[0] == alone[0] and logit[2] == alone[2] and logit[1] == net[1]
-    # a checkpoint holds the rule (switched on) and loads with it
-    torch.save(rule.checkpoint(), tmp_path / "rule.pt")
+    torch.save(tr.checkpoint(), tmp_path / "rule.pt")
     again = net_from_checkpoint(read_checkpoint(tmp_path / "rule.pt", "ata_hrl"), "rule.pt")
-    assert again.cond.linear.on == 1 and torch.equal(again.cond.linear.weight, lin.weight)
+    assert again.cond.rule.on == 1 and torch.equal(again.cond.rule.weight, rule.weight)
 
 
 def test_later_rounds_of_the_rule_label_every_event_epoch_as_the_rule_decides():
     # cond_rounds: from the second round on, the labels are collected with the fitted rule
     # deciding the event epochs, and every event epoch is labelled (re-planned or skipped),
     # so that the rule is fitted again on the states it leads to
-    from ata.plugins.ata_hrl.trainer import fit_rule
-    rule = build_trainer(load_session(str(training_mission_for(["ctr", "aux"])), [
-        "ata_hrl.cond_scenarios=2", "ata_hrl.batch_size=4", "ata_hrl.cond_fit='rule'",
-        "ata_hrl.cond_rounds=2"]))
-    rule.take_ita("builtin:ata_hrl_a", whole=True)
-    assert rule.phases()["cond"] == 2 and not rule._rule_on()
-    mission = rule._mission("a/high", 77)
+    from ata.plugins.ata_hrl.phases.cond import fit_rule
+    tr = shipped_cond_trainer("ata_hrl.batch_size=4", "ata_hrl.cond_rounds=2")
+    assert tr.phases()["cond"] == 2 and not tr.net.cond.rule_on()
+    mission = tr.mission_of("a/high", 77)
     ids = np.array([3, 4, 5, 6])
-    first = rule.cond_batch(mission, ids)
+    first = tr.cond.batch(mission, ids)
     assert np.array_equal(first["labelled"], first["taken"])     # where it re-planned
-    fit_rule(rule.net.cond.linear, [first], 1e-2)
+    fit_rule(tr.net.cond.rule, [first], 1e-2)
     with torch.no_grad():        # make the rule skip some events: their labels must be kept
-        rule.net.cond.linear.bias -= 1.0
-    assert rule._rule_on()
-    second = rule.cond_batch(mission, ids)
+        tr.net.cond.rule.bias -= 1.0
+    assert tr.net.cond.rule_on()
+    second = tr.cond.batch(mission, ids)
     prior = second["prior"].numpy() > 0
     assert np.array_equal(second["labelled"], prior)
     # the rule decided the event epochs: its logit's sign, from the recorded features
     with torch.no_grad():
-        logit = rule.net.cond.linear(second["feats"])[..., 0].numpy()
+        logit = tr.net.cond.rule(second["feats"])[..., 0].numpy()
     assert np.array_equal(second["taken"][prior], logit[prior] > 0)
     assert (prior & ~second["taken"]).any()                      # skipped events, labelled
     assert (second["weight"][~prior] == 0).all()                 # only they were turned over
@@ -698,9 +735,9 @@ def test_status_head_trains_to_find_hidden_captures(tmp_path):
                 "ata_hrl.ita_steps=0", "ata_hrl.ctr_steps=0", "ata_hrl.aux_steps=0")
     trainer = build_trainer(s)
     from ata.training import TrainRun
-    trainer.run_folder = TrainRun(tmp_path, s.mission.to_toml(), trainer.log_fields)
-    before = trainer.status_report()
-    after = trainer.train_status()
+    trainer.loop.run = TrainRun(tmp_path, s.mission.to_toml(), trainer.log_fields)
+    before = trainer.status.report()
+    after = trainer.loop.run_phase(trainer.status.phase())
     assert after["status_captured_hidden"] > 0
     assert after["status_captured_found"] > after["status_captured_wrong"]
     assert after["status_captured_found"] - after["status_captured_wrong"] \
@@ -736,9 +773,9 @@ def test_status_guesses_reach_the_plan_start_and_the_policy_view():
     assert changed.sum() == 2
 
 
-def test_status_head_is_optional_and_checkpoints_before_it_still_serve(tmp_path):
-    """A checkpoint without a head (status_hidden = 0, as every one before the head) loads, and
-    its aux component writes no guesses; its ITA serves a training with a head (ita_from)."""
+def test_status_head_is_optional_and_checkpoints_without_it_serve(tmp_path):
+    """A checkpoint without a head (status_hidden = 0, as the (a) weights) loads, and its aux
+    component writes no guesses; its ITA serves a training with a head (ita_from)."""
     no_head = train(session("ata_hrl.status_hidden=0", "ata_hrl.ctr_steps=0"),
                     tmp_path / "no_head")
     assert not hasattr(no_head.net, "status")

@@ -47,7 +47,7 @@ def test_ata_declares_the_components_of_its_optional_plugins():
         ("policy", "ctr"): "ata.plugins.ata_hrl.ctr",
         ("reconstructor", "aux"): "ata.plugins.ata_hrl.aux",
         ("policy", "tr_pomdp"): "ata.plugins.tr_pomdp",
-        ("trainer", "dqn"): "ata.plugins.tr_pomdp",
+        ("trainer", "tr_pomdp"): "ata.plugins.tr_pomdp",
     }
     assert providers(["greedy", "aux", "attention", "ctr", "tr_pomdp"]) == ["aux", "ita", "ctr",
                                                                             "trp"]

@@ -1,6 +1,7 @@
 """Nothing lost: `ata eval` saves each work unit as it finishes, a rerun into the same folder runs
 only what is missing and ends with the rows of an uninterrupted run, a killed run leaves no
-worker behind, and a folder of another plan is refused."""
+worker behind, and a folder of another plan is refused; a training run killed anywhere in its
+phases resumes to the weights and log.csv rows of an uninterrupted one."""
 
 from __future__ import annotations
 
@@ -231,3 +232,104 @@ def test_plan_keys_change_with_the_content_of_the_weights_a_mission_names(tmp_pa
     weights.write_bytes(weights.read_bytes() + b"\0")        # same name, other content
     second = keys()
     assert second[0] != first[0] and second[1] != first[1]
+
+
+# --- the training library's phase loop ------------------------------------------------------------
+
+class Doubling:
+    """A trainer of one tensor in two phases, run by ata.training's phase loop: phase "a" adds
+    k + 1 at its step k (2 episodes a step), phase "b" doubles it; validation scores how close
+    its sum is to 10."""
+
+    fields = ["phase", "step", "episodes", "episodes_per_s", "value", "eval", "wall_s"]
+
+    def __init__(self):
+        import torch
+        from ata.training import PhaseLoop
+        self.x = torch.zeros(2)
+        self.loop = PhaseLoop(["a", "b"], lambda name: {"kind": "toy", "x": self.x.clone(),
+                                                        **self.loop.state()})
+
+    def run(self, run, resume=False):
+        from ata.training import Phase
+
+        def add(k):
+            self.x += k + 1
+            return {"value": f"{self.x.sum():.1f}"}, 2
+
+        def double(k):
+            self.x *= 2
+            return {"value": f"{self.x.sum():.1f}"}, 0
+
+        def validate():
+            score = -abs(float(self.x.sum()) - 10.0)
+            return score, {"eval": f"{score:.1f}"}
+
+        self.loop.run = run
+        if resume and run.resumes:
+            data = run.resume_checkpoint("toy")
+            self.x = data["x"]
+            self.loop.load_state(data)
+        self.loop.run_phase(Phase("a", 4, add, checkpoint_every=2, eval_every=2,
+                                  validate=validate, validate_first=True))
+        self.loop.run_phase(Phase("b", 2, double, eval_every=1, validate=validate,
+                                  validate_first=True, fresh_best=True))
+        return self.loop.finish()
+
+
+# by hand: a adds 1, 2, 3, 4 (sums 2, 6, 12, 20), validated at steps 0, 2 and 4 (the last);
+# b doubles twice (40, 80), validated at every step; best.pt: a's step 2 (-4), until b's step 0
+# starts afresh (-10: x = [10, 10]), which stays the best
+DOUBLING_ROWS = [
+    {"phase": "a", "step": "0", "episodes": "", "value": "", "eval": "-10.0"},
+    {"phase": "a", "step": "1", "episodes": "2", "value": "2.0", "eval": ""},
+    {"phase": "a", "step": "2", "episodes": "4", "value": "6.0", "eval": "-4.0"},
+    {"phase": "a", "step": "3", "episodes": "6", "value": "12.0", "eval": ""},
+    {"phase": "a", "step": "4", "episodes": "8", "value": "20.0", "eval": "-10.0"},
+    {"phase": "b", "step": "0", "episodes": "", "value": "", "eval": "-10.0"},
+    {"phase": "b", "step": "1", "episodes": "", "value": "40.0", "eval": "-30.0"},
+    {"phase": "b", "step": "2", "episodes": "", "value": "80.0", "eval": "-70.0"}]
+
+
+class Killed(Exception):
+    pass
+
+
+def doubling_run(folder: Path, *, resume=False, kill=None) -> "Doubling":
+    from ata.training import TrainRun
+
+    def on_row(row):
+        if kill is not None and (row["phase"], str(row["step"])) == kill:
+            raise Killed
+
+    trainer = Doubling()
+    run = TrainRun(folder, "", Doubling.fields, resume=resume, on_row=on_row)
+    trainer.report = trainer.run(run, resume=resume)
+    return trainer
+
+
+def training_rows(folder: Path) -> list[dict]:
+    with open(folder / "log.csv", newline="") as f:
+        return [{k: v for k, v in r.items() if k not in ("wall_s", "episodes_per_s")}
+                for r in csv.DictReader(f)]
+
+
+@pytest.mark.parametrize("kill", [("a", "0"),     # before any checkpoint.pt: starts over
+                                  ("a", "3"),     # after step 2's checkpoint
+                                  ("b", "1")])    # in the second phase
+def test_the_phase_loop_resumes_a_killed_run_to_the_same_weights_and_log(tmp_path, kill):
+    import torch
+    from ata.training import read_checkpoint
+    whole = doubling_run(tmp_path / "whole")
+    assert training_rows(tmp_path / "whole") == DOUBLING_ROWS
+    assert whole.x.tolist() == [40.0, 40.0]
+    assert whole.report["counters"] == {"a": 4, "b": 2, "episodes": 8}
+    assert whole.report["best_eval"] == -10.0
+    assert read_checkpoint(tmp_path / "whole" / "best.pt")["x"].tolist() == [10.0, 10.0]
+    with pytest.raises(Killed):
+        doubling_run(tmp_path / "broken", kill=kill)
+    again = doubling_run(tmp_path / "broken", resume=True)
+    assert training_rows(tmp_path / "broken") == DOUBLING_ROWS
+    assert torch.equal(again.x, whole.x) and again.report["counters"] == whole.report["counters"]
+    assert torch.equal(read_checkpoint(tmp_path / "broken" / "best.pt")["x"],
+                       torch.tensor([10.0, 10.0]))

@@ -97,6 +97,12 @@ class ComponentInfo:
     dist: str            # distribution name and version, "ata 0.1.0"
 
 
+def _one_table(a: Callable[..., Any], b: Callable[..., Any]) -> bool:
+    """Whether two factories are one component's: the same, or reading one Settings class."""
+    settings = getattr(a, "Settings", None)
+    return a is b or (settings is not None and settings is getattr(b, "Settings", None))
+
+
 class Register:
     """The callable that ``ata_register_components`` receives; collects components by name."""
 
@@ -115,9 +121,11 @@ class Register:
             raise ValueError(f"plugin {self._plugin}: unknown component kind {kind!r}; "
                              f"kinds: {', '.join(KINDS)}")
         # A name means one component (its settings table is named after it): the same factory
-        # may be registered under several kinds (a policy that also decides when), nothing else.
+        # may be registered under several kinds (a policy that also decides when), or factories
+        # that read one Settings class (a method's policy and its trainer), nothing else.
         for (other_kind, other_name), info in self.components.items():
-            if other_name == name and (other_kind == kind or info.factory is not factory):
+            if other_name == name and (other_kind == kind or not _one_table(info.factory,
+                                                                            factory)):
                 raise ValueError(f"plugin {self._plugin}: component name {name!r} is already "
                                  f"registered ({other_kind}) by {info.plugin}")
         key = (kind, name)

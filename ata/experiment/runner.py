@@ -136,7 +136,7 @@ def build_trainer(session: Session) -> Any:
     name = m.slots.trainer
     if name == "none":
         raise MissionError("[components]", "trainer", "names no trainer: nothing to train "
-                           "(ata_hrl trains ATA-HRL's parts, dqn the TR-POMDP agents)",
+                           "(ata_hrl trains ATA-HRL's parts, tr_pomdp the TR-POMDP agents)",
                            file=m.source)
     info = session.registry.get("trainer", name, "[components] key 'trainer'")
     try:

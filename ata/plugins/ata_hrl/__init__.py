@@ -7,5 +7,5 @@
 
 Modules: ``decoder`` (capacity-aware decoding in numpy), ``network`` (the torch networks),
 ``decode`` (running the decoder with a network), ``features``, ``components``, ``rewards``,
-``checkpoint``, ``trainer``. It uses only ata's public plugin API.
+``checkpoint``, ``trainer`` and its ``phases``. It uses only ata's public plugin API.
 """

@@ -1,8 +1,8 @@
 """ATA-HRL's checkpoints: the network a checkpoint describes, cached once per process.
 
 Reading is ``ata.training.read_checkpoint`` (``torch.load(..., weights_only=True)``): a file that
-is missing, truncated, not a checkpoint, of another method (a TR-POMDP checkpoint) or of another
-architecture is refused with a message naming it.
+is missing, truncated, not a checkpoint, of another method (a TR-POMDP checkpoint), of another
+format or of another architecture is refused with a message naming it.
 """
 
 from __future__ import annotations
@@ -14,10 +14,21 @@ from ata.training import CheckpointError, load_cached, read_checkpoint, trained_
 
 KIND = "ata_hrl"
 """The ``kind`` an ATA-HRL checkpoint carries."""
-FORMAT = 2
+FORMAT = 3
+"""The layout of the checkpoints this version writes and reads: pi_C's fitted rule is part of
+every network (``cond.rule.weight``, ``.bias`` and ``.on``: zero and off where none was
+fitted), and the config holds the architecture alone."""
 
-__all__ = ["KIND", "FORMAT", "CheckpointError", "read_checkpoint", "net_from_checkpoint",
-           "load_net", "trained_ranges"]
+__all__ = ["KIND", "FORMAT", "CheckpointError", "read_checkpoint", "check_format",
+           "net_from_checkpoint", "load_net", "trained_ranges"]
+
+
+def check_format(data: dict[str, Any], path: str | Path) -> None:
+    """A CheckpointError unless `data` has this version's layout."""
+    if data.get("format") != FORMAT:
+        raise CheckpointError(path, f"is an ATA-HRL checkpoint of format {data.get('format')}; "
+                                    f"this version reads format {FORMAT} (retrain it with "
+                                    "`ata train`)")
 
 
 def net_from_checkpoint(data: dict[str, Any], path: str | Path, expect=None):
@@ -25,6 +36,7 @@ def net_from_checkpoint(data: dict[str, Any], path: str | Path, expect=None):
     from ata.plugins.ata_hrl.network import ATAHRLNet, NetConfig
     if "model" not in data or "config" not in data:
         raise CheckpointError(path, "holds no ATA-HRL network (no model or config)")
+    check_format(data, path)
     try:
         cfg = NetConfig(**data["config"])
     except TypeError as exc:

@@ -46,11 +46,7 @@ class NetConfig:
     hidden: int = 64
     z_dim: int = 4
     recon_hidden: int = 32
-    status_hidden: int = 0      # width of the status head (0: none, as in checkpoints before it)
-    cond_linear: bool = False   # pi_C's linear residual on its condition features at event
-    #                             epochs (the cond phase's cond_fit = "features")
-    cond_rule: bool = False     # with cond_linear: at event epochs pi_C's logit is that linear
-    #                             layer's alone, a logistic rule (cond_fit = "rule")
+    status_hidden: int = 0      # width of the aux module's status head (0: none)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -205,9 +201,9 @@ COND_FEATURES = 10
 class ConditionNet(nn.Module):
     """pi_C: a GRU over the epochs, reading the pooled state embedding and the condition
     features; its logit is a learned residual on the event prior (+1 when the observation shows
-    a new robot failure or attribute change, -1 otherwise). With ``cond_linear`` a linear layer
-    on the condition features adds to that logit at event epochs, or, with ``cond_rule`` too
-    (and once fitted: its ``on`` buffer), replaces it there."""
+    a new robot failure or attribute change, -1 otherwise). At event epochs a fitted logistic
+    rule on the condition features (``rule``, fitted by the trainer's cond phase) decides in its
+    place once it is switched on (its ``on`` buffer); until then it is zero and off."""
 
     def __init__(self, cfg: NetConfig):
         super().__init__()
@@ -217,17 +213,12 @@ class ConditionNet(nn.Module):
         nn.init.zeros_(self.head[-1].weight)
         nn.init.zeros_(self.head[-1].bias)
         self.log_scale = nn.Parameter(torch.tensor(math.log(1.5)))
-        self.linear: nn.Linear | None = None
-        self.rule = cfg.cond_linear and cfg.cond_rule
-        if cfg.cond_linear:
-            # at zero, and made without drawing from torch's generator: every other weight of
-            # a network with it is initialised as in one without
-            self.linear = nn.Linear(COND_FEATURES, 1, device="meta").to_empty(device="cpu")
-            nn.init.zeros_(self.linear.weight)
-            nn.init.zeros_(self.linear.bias)
-            if self.rule:    # 0 until the cond phase has fitted the rule: pi_C decides as
-                #              the network does while its labels are collected
-                self.linear.register_buffer("on", torch.zeros(()))
+        # made at zero without drawing from torch's generator, so that every other weight of
+        # the network starts from a seed as it would without the rule
+        self.rule = nn.Linear(COND_FEATURES, 1, device="meta").to_empty(device="cpu")
+        nn.init.zeros_(self.rule.weight)
+        nn.init.zeros_(self.rule.bias)
+        self.rule.register_buffer("on", torch.zeros(()))
 
     def forward(self, pooled: torch.Tensor, feats: torch.Tensor, prior: torch.Tensor,
                 hidden: torch.Tensor, residual: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
@@ -236,12 +227,13 @@ class ConditionNet(nn.Module):
         logit = self.log_scale.exp() * prior
         if residual:
             logit = logit + self.head(torch.cat([hidden, feats], -1))[..., 0]
-            if self.rule:                    # at event epochs (prior +1): the rule alone
-                logit = torch.where((prior > 0) & (self.linear.on > 0),
-                                    self.linear(feats)[..., 0], logit)
-            elif self.linear is not None:    # at event epochs alone (prior +1)
-                logit = logit + (prior > 0) * self.linear(feats)[..., 0]
+            if self.rule_on():               # at event epochs (prior +1): the rule alone
+                logit = torch.where(prior > 0, self.rule(feats)[..., 0], logit)
         return logit, hidden
+
+    def rule_on(self) -> bool:
+        """Whether the fitted rule decides pi_C's event epochs."""
+        return bool(self.rule.on > 0)
 
 
 class FatigueCVAE(nn.Module):
@@ -313,8 +305,8 @@ class ATAHRLNet(nn.Module):
         self.latency = nn.ModuleDict({"robots": LatencyGRU(S_DIMS["robots"], self.cfg),
                                       "tasks": LatencyGRU(S_DIMS["tasks"], self.cfg)})
         if self.cfg.status_hidden > 0:
-            # initialised from a generator of its own: the parts above start as they did
-            # before the head existed, whatever the global torch state
+            # initialised from a generator of its own: the parts above start from a seed as
+            # they would without the head, whatever the global torch state
             with torch.random.fork_rng():
                 torch.manual_seed(7919)
                 self.status = StatusHead(STATUS_FEATURES, self.cfg)

@@ -17,9 +17,9 @@ from typing import Any
 import numpy as np
 
 from ata import hookimpl
-from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext
 from ata.plugins.tr_pomdp import agents as dqn
+from ata.plugins.tr_pomdp.settings import Settings as TRPOMDPSettings
 from ata.training import CheckpointError, load_cached, trained_on
 
 KIND = "tr_pomdp"
@@ -59,12 +59,7 @@ class TRPOMDPPolicy:
 
     component_name = "tr_pomdp"
 
-    @dataclass
-    class Settings:
-        checkpoint: str = param("builtin:tr_pomdp_a", help="trained agents: a path or "
-                                "builtin:NAME")
-        epsilon: float = param(0.0, min=0.0, max=1.0, help="exploration rate at evaluation "
-                               "(random legal action, per agent, from the scenario's stream)")
+    Settings = TRPOMDPSettings      # one table with the trainer `tr_pomdp` (settings.py)
 
     def __init__(self, settings: "TRPOMDPPolicy.Settings", mission: Any,
                  nets: dqn.AgentNets | None = None, log: list[Transition] | None = None,

@@ -1,0 +1,118 @@
+"""What the ITA and CTR phases share: a policy-gradient step with a shared per-scenario baseline.
+
+Each step plays one team setting (and level) of the cycle: it samples ``samples`` decisions of
+each of ``batch_size`` training scenarios on common random numbers (the same scenario, the same
+random streams), runs them, and computes the paper's rewards from each classification's
+expected points (the outcome draws do not change what happens next, so this removes their
+noise and keeps the expectation). Each sample's advantage is its reward less the mean of its
+scenario's samples; one Adam step follows, the policies' gradients clipped to ``grad_clip``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import torch
+
+from ata.core.settings import param
+from ata.plugins.ata_hrl.components import Recorder
+from ata.plugins.ata_hrl.rewards import hierarchical_rewards, rewards_to_go
+from ata.training import Phase
+
+if TYPE_CHECKING:
+    from ata.plugins.ata_hrl.trainer import ATAHRLTrainer
+
+
+@dataclass
+class Settings:
+    """The keys of ``[ata_hrl]`` that the ITA and CTR phases share."""
+
+    samples: int = param(8, min=2, max=256, help="ita, ctr: samples of each scenario per step "
+                         "(the shared baseline is their mean)")
+    grad_clip: float = param(1.0, min=0.0, help="ita, ctr: gradient norm clip (0: none)")
+
+
+def shared_baseline_advantage(reward: np.ndarray, samples: int) -> np.ndarray:
+    """Each sample's reward less the mean of its scenario's samples: rewards (B * K,) laid out
+    scenario by scenario; the advantages of one scenario sum to zero."""
+    r = np.asarray(reward, dtype=float).reshape(-1, samples)
+    return (r - r.mean(1, keepdims=True)).reshape(-1)
+
+
+def per_epoch_advantage(reward: np.ndarray, samples: int) -> np.ndarray:
+    """(E, T) rewards from each epoch on, less the mean over the scenario's samples at that
+    epoch: the shared baseline, epoch by epoch (zero-sum per scenario and epoch)."""
+    E, T = reward.shape
+    r = reward.reshape(E // samples, samples, T)
+    return (r - r.mean(1, keepdims=True)).reshape(E, T)
+
+
+def rewards(record) -> dict[str, np.ndarray]:
+    """The paper's rewards of a rollout on expected points, per episode, and each one's
+    rewards-to-go from every epoch on (``R_C_to_go``, ...)."""
+    R = hierarchical_rewards(record, expected=True)
+    R.update({f"{key}_to_go": v for key, v in rewards_to_go(record, expected=True).items()})
+    return R
+
+
+def scaled(advantage: np.ndarray) -> torch.Tensor:
+    """The advantages over their standard deviation (the step's size does not follow the
+    rewards' scale)."""
+    return torch.as_tensor(advantage / (advantage.std() + 1e-6), dtype=torch.float32)
+
+
+class PolicyPhase:
+    """A phase of shared-baseline policy-gradient steps; a subclass gives its name, its
+    learning rate and its loss."""
+
+    name = ""
+
+    def __init__(self, trainer: "ATAHRLTrainer"):
+        self.tr = trainer
+
+    def lr(self) -> float:
+        raise NotImplementedError
+
+    def fresh_best(self) -> bool:
+        """Whether best.pt is chosen afresh from this phase's step 0 on."""
+        return False
+
+    def loss(self, rec: Recorder, R: dict[str, np.ndarray]) -> torch.Tensor:
+        raise NotImplementedError
+
+    def phase(self) -> Phase:
+        s, tr = self.tr.s, self.tr
+        return Phase(self.name, tr.phases()[self.name], self.step,
+                     checkpoint_every=s.checkpoint_every, eval_every=s.eval_every,
+                     validate=lambda: tr.validate(self.name), validate_first=True,
+                     fresh_best=self.fresh_best(), start=self.start)
+
+    def start(self) -> None:
+        for group in self.tr.opt.param_groups:
+            group["lr"] = self.lr()
+
+    def step(self, k: int) -> tuple[dict[str, Any], int]:
+        tr, s = self.tr, self.tr.s
+        setting = tr.setting(k)
+        mission = tr.mission_of(setting, s.seed)
+        ids = np.repeat(tr.ids(self.name, k), s.samples)
+        record, rec = tr.rollout(mission, ids, self.name, train=True)
+        R = rewards(record)
+        loss = self.loss(rec, R)
+        self.update(loss)
+        return {"setting": setting, "loss": f"{loss.item():.4f}",
+                "mean_score": f"{R['total'].mean():.2f}", "R_ITA": f"{R['R_ITA'].mean():.2f}",
+                "R_C": f"{R['R_C'].mean():.2f}", "R_TR": f"{R['R_TR'].mean():.2f}",
+                "reallocations": f"{record.reallocated[:, 1:].sum(1).mean():.2f}"}, ids.size
+
+    def update(self, loss: torch.Tensor) -> None:
+        """One Adam step of the policies on `loss`, their gradients clipped (not the
+        reconstructors')."""
+        tr = self.tr
+        tr.opt.zero_grad()
+        loss.backward()
+        if tr.s.grad_clip > 0:
+            torch.nn.utils.clip_grad_norm_(tr.policy_params, tr.s.grad_clip)
+        tr.opt.step()

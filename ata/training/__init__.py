@@ -1,0 +1,39 @@
+"""What a trainer component needs from ata, for built-in and third-party trainers alike.
+
+A *trainer* is a component of kind ``trainer``, registered by name like any other and chosen in
+a training mission's ``[components] trainer``; its settings are the table named after it. `ata
+train MISSION` builds it as ``factory(settings, mission, registry)`` and calls ``run``:
+
+    class MyTrainer:
+        log_fields = ["phase", "step", ...]                         # the columns of log.csv
+
+        @dataclass
+        class Settings: ...
+
+        def __init__(self, settings, mission, registry): ...
+        def scenario_ranges(self) -> list[tuple[int, int, int]]: ...   # (seed, first, end)
+        def total_steps(self) -> int: ...
+        def done_steps(self) -> int: ...                            # for the progress bar
+        def run(self, run: TrainRun, resume: bool = False) -> dict: ...
+
+``scenario_ranges`` lists every (root seed, scenario id range) the training may draw; the trainer
+records it in each checkpoint, the components it trains report it through the
+``ata_trained_on`` hook, and `ata eval` refuses to evaluate a method on any scenario in it.
+Training ids must stay below ``TRAINING_ID_LIMIT`` (evaluation ids start at 2**40).
+
+``TrainRun`` is the run folder: the resolved mission, ``log.csv`` (one row per step), and
+checkpoints written atomically (a temporary file, then a rename), so a killed run resumes from
+its last checkpoint with ``ata train --resume DIR``. ``PhaseLoop`` runs a trainer's phases
+(``Phase``) over it: counters, log rows, validation, best.pt, checkpoints and resume, the same
+for every trainer (both built-in ones use it).
+"""
+
+from ata.runtime.inputs import WEIGHTS, file_digest, resolve
+from ata.training.checkpoints import (TRAINING_ID_LIMIT, VALIDATION_SEED_OFFSET, CheckpointError,
+                                      load_cached, read_checkpoint, trained_on)
+from ata.training.loop import Phase, PhaseLoop
+from ata.training.run import TrainRun
+
+__all__ = ["TRAINING_ID_LIMIT", "VALIDATION_SEED_OFFSET", "WEIGHTS", "CheckpointError", "Phase",
+           "PhaseLoop", "TrainRun", "file_digest", "load_cached", "read_checkpoint", "resolve",
+           "trained_on"]

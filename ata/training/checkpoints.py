@@ -1,0 +1,82 @@
+"""Checkpoints of the learned components: reading them safely, caching what they build, and the
+scenario ranges their training drew from."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Callable
+
+from ata.core.errors import MissionError
+from ata.runtime.heldout import EVAL_FIRST_SCENARIO
+from ata.runtime.inputs import resolve
+
+TRAINING_ID_LIMIT = EVAL_FIRST_SCENARIO
+"""Training scenario ids lie below this; evaluation ids start there."""
+VALIDATION_SEED_OFFSET = 1_000_003
+"""A trainer's held-out validation scenarios have root seed ``seed + VALIDATION_SEED_OFFSET``
+(the built-in trainers' convention; they list that range in ``scenario_ranges``)."""
+_CACHE: dict[tuple, Any] = {}
+
+
+class CheckpointError(MissionError):
+    """A checkpoint that is missing, corrupted, or does not match what reads it."""
+
+    def __init__(self, path: str | Path, message: str):
+        super().__init__("checkpoint", None, message, file=str(path))
+
+
+def read_checkpoint(path: str | Path, kind: str | None = None) -> dict[str, Any]:
+    """Load a checkpoint dict with ``torch.load(..., weights_only=True)``; a missing, empty,
+    truncated or foreign file is a CheckpointError naming it.
+
+    :param kind: the method the checkpoint must be of (its ``kind`` entry), if any: a
+        TR-POMDP checkpoint given where ATA-HRL's is expected is refused.
+    """
+    import torch
+    p = Path(path)
+    if not p.exists():
+        raise CheckpointError(p, "no such checkpoint (train one with `ata train`)")
+    if p.is_dir():
+        raise CheckpointError(p, "is a directory, not a checkpoint")
+    try:
+        data = torch.load(p, map_location="cpu", weights_only=True)
+    except Exception as exc:   # empty, truncated, corrupted, or not a torch file at all
+        first = (str(exc).splitlines() or [""])[0][:200]
+        raise CheckpointError(p, f"cannot be read as a checkpoint ({type(exc).__name__}: "
+                                 f"{first})") from None
+    if not isinstance(data, dict) or "kind" not in data:
+        raise CheckpointError(p, "is not an ata checkpoint (it names no method)")
+    return of_kind(data, p, kind)
+
+
+def of_kind(data: dict[str, Any], path: str | Path, kind: str | None) -> dict[str, Any]:
+    """`data` if it is a checkpoint of method `kind` (any, if None); a CheckpointError if not."""
+    if kind is not None and data.get("kind") != kind:
+        raise CheckpointError(path, f"is a checkpoint of {data.get('kind')!r}, not of "
+                                    f"{kind!r}: name a checkpoint that `ata train` wrote for "
+                                    f"{kind}")
+    return data
+
+
+def load_cached(spec: str, build: Callable[[dict[str, Any], Path], Any], kind: str) -> Any:
+    """What `build(checkpoint data, path)` makes of a checkpoint of `kind` (in evaluation mode),
+    built once per process for each (kind, file)."""
+    path = resolve(spec)
+    key = (kind, str(path.resolve()) if path.exists() else str(path))
+    if key not in _CACHE:
+        module = build(read_checkpoint(path, kind), path)
+        module.eval()
+        _CACHE[key] = module
+    return _CACHE[key]
+
+
+def trained_on(spec: str, kind: str) -> list[tuple[int, int, int]]:
+    """The (root seed, first id, end id) ranges a checkpoint's training drew scenarios from,
+    as its trainer recorded them (read once per process for each version of the file)."""
+    path = resolve(spec)
+    stat = path.stat() if path.is_file() else None
+    key = ("ranges", kind, str(path.resolve()), stat and (stat.st_mtime_ns, stat.st_size))
+    if stat is None or key not in _CACHE:
+        data = read_checkpoint(path, kind)
+        _CACHE[key] = [tuple(int(x) for x in r) for r in data.get("scenario_ranges", [])]
+    return list(_CACHE[key])
