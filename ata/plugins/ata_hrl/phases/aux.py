@@ -10,7 +10,7 @@ true rows), in ``aux_steps`` supervised steps on minibatches of the logged rows.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import torch
@@ -22,9 +22,8 @@ from ata.plugins.ata_hrl.features import state_features
 from ata.plugins.ata_hrl.network import FatigueCVAE
 from ata.plugins.ata_hrl.status import status_targets
 from ata.training import Phase
+from ata.plugins.ata_hrl.phases.host import Host
 
-if TYPE_CHECKING:
-    from ata.plugins.ata_hrl.trainer import ATAHRLTrainer
 
 
 @dataclass
@@ -38,7 +37,7 @@ class Settings:
                           "reconstructors")
 
 
-def teacher_log(trainer: "ATAHRLTrainer", mission, ids: np.ndarray) -> dict[str, list]:
+def teacher_log(trainer: Host, mission, ids: np.ndarray) -> dict[str, list]:
     """Roll out the greedy teacher on scenarios `ids` and log the observed and the true S of
     every epoch (and, with a status head, its inputs and targets)."""
     from ata import hookimpl
@@ -89,7 +88,7 @@ class AuxPhase:
 
     name = "aux"
 
-    def __init__(self, trainer: "ATAHRLTrainer"):
+    def __init__(self, trainer: Host):
         self.tr = trainer
         self.data: dict[str, torch.Tensor] = {}
 

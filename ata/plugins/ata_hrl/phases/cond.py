@@ -20,7 +20,7 @@ either way) and fits the rule to those labels alone (approximate policy iteratio
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import torch
@@ -34,9 +34,8 @@ from ata.plugins.ata_hrl.phases import FIRST_ID
 from ata.plugins.ata_hrl.phases.ctr import tr_from_ita
 from ata.plugins.ata_hrl.rewards import to_go
 from ata.training import Phase
+from ata.plugins.ata_hrl.phases.host import Host
 
-if TYPE_CHECKING:
-    from ata.plugins.ata_hrl.trainer import ATAHRLTrainer
 
 
 @dataclass
@@ -61,7 +60,7 @@ class CondPhase:
 
     name = "cond"
 
-    def __init__(self, trainer: "ATAHRLTrainer"):
+    def __init__(self, trainer: Host):
         self.tr = trainer
         self.last: dict[str, float] = {}
 

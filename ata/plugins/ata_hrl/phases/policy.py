@@ -11,7 +11,7 @@ scenario's samples; one Adam step follows, the policies' gradients clipped to ``
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import torch
@@ -20,9 +20,8 @@ from ata.core.settings import param
 from ata.plugins.ata_hrl.components import Recorder
 from ata.plugins.ata_hrl.rewards import hierarchical_rewards, rewards_to_go
 from ata.training import Phase
+from ata.plugins.ata_hrl.phases.host import Host
 
-if TYPE_CHECKING:
-    from ata.plugins.ata_hrl.trainer import ATAHRLTrainer
 
 
 @dataclass
@@ -69,7 +68,7 @@ class PolicyPhase:
 
     name = ""
 
-    def __init__(self, trainer: "ATAHRLTrainer"):
+    def __init__(self, trainer: Host):
         self.tr = trainer
 
     def lr(self) -> float:

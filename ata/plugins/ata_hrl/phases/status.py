@@ -11,7 +11,7 @@ a run with the head trains every other part as a run without it does.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import torch
@@ -20,9 +20,8 @@ from ata.core.settings import param
 from ata.plugins.ata_hrl.phases.aux import teacher_log
 from ata.plugins.ata_hrl.status import GUESSES, guesses
 from ata.training import Phase
+from ata.plugins.ata_hrl.phases.host import Host
 
-if TYPE_CHECKING:
-    from ata.plugins.ata_hrl.trainer import ATAHRLTrainer
 
 
 @dataclass
@@ -48,7 +47,7 @@ class StatusPhase:
 
     name = "status"
 
-    def __init__(self, trainer: "ATAHRLTrainer"):
+    def __init__(self, trainer: Host):
         self.tr = trainer
         self.x = self.y = torch.zeros(0)
 
