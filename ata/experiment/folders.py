@@ -25,9 +25,10 @@ def runs_root() -> Path:
 
 
 def safe_name(text: str, fallback: str = "run") -> str:
-    """A form of a user's label that is one plain file name: no separator, no leading dot
-    ('w/o.AUX' -> 'w_o.AUX', '../../x' -> 'x', '/elsewhere/x' -> 'elsewhere_x')."""
-    return re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("._-") or fallback
+    """A form of a user's label that is one plain file name: no separator, no '..', no leading
+    dot ('w/o.AUX' -> 'w_o.AUX', '../../x' -> 'x', '/elsewhere/x' -> 'elsewhere_x')."""
+    name = re.sub(r"_+", "_", re.sub(r"[^A-Za-z0-9._-]+|\.\.+", "_", text))
+    return name.strip("._-") or fallback
 
 
 def stamped_folder(label: str) -> Path:
