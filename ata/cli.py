@@ -342,7 +342,7 @@ def train(mission: Optional[str] = typer.Argument(
     """Train the learned components of a mission with the trainer it names (ata_hrl: ATA-HRL
     and its ablations; tr_pomdp: the TR-POMDP agents, also after the attention ITA for AtRL-TR)."""
     from ata.experiment import runner
-    from ata.experiment.execute import prepare_out_dir
+    from ata.experiment.execute import Interrupted, prepare_out_dir
     from ata.training import TrainRun
 
     if resume is not None:
@@ -361,11 +361,14 @@ def train(mission: Optional[str] = typer.Argument(
                    else runner.default_out_dir(session.mission, prefix="train-"))
     trainer = runner.build_trainer(session)
     m = session.mission
-    with terminal.training_bar(f"train {m.settings.name}", trainer, quiet) as on_row:
-        run = TrainRun(run_dir, m.to_toml(), trainer.log_fields, resume=resume is not None,
-                       on_row=on_row)
-        on_row(None)
-        report = trainer.run(run, resume=resume is not None)
+    try:
+        with terminal.training_bar(f"train {m.settings.name}", trainer, quiet) as on_row:
+            run = TrainRun(run_dir, m.to_toml(), trainer.log_fields, resume=resume is not None,
+                           on_row=on_row)
+            on_row(None)
+            report = trainer.run(run, resume=resume is not None)
+    except KeyboardInterrupt:
+        raise Interrupted(runner.training_saved(run_dir)) from None
     best = report.get("best_eval", float("nan"))
     console.print(f"trained in {report['wall_s']:.0f} s of training time; best held-out "
                   f"score {best:.1f}")
@@ -462,13 +465,16 @@ def show(target: Optional[str] = typer.Argument(
          set_: Optional[List[str]] = SetOption,
          out: Optional[Path] = typer.Option(
              None, "--out", "-o", metavar="DIR",
-             help="Folder for the pictures (default: RUN_DIR/show-N, or runs/show-NAME-N).")
-         ) -> None:
+             help="Folder for the pictures (default: RUN_DIR/show-N, or runs/show-NAME-N)."),
+         animate: bool = typer.Option(
+             False, "--animate", help="Also write the map through time as an animated GIF "
+                                      "(show_map.gif, one frame per epoch).")) -> None:
     """Replay one scenario with a recorded trace and draw its map, a timeline per member and
-    the humans' states (show_map, show_timeline, show_humans; PNG and SVG); see docs/show.md."""
+    the humans' states (show_map, show_timeline, show_humans; PNG and SVG), and with --animate
+    the map through time (show_map.gif); see docs/show.md."""
     from ata.viz.show import show as show_scenario
 
-    terminal.show_summary(show_scenario(target, scenario, list(set_ or []), out))
+    terminal.show_summary(show_scenario(target, scenario, list(set_ or []), out, animate))
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(app())

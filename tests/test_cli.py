@@ -378,9 +378,9 @@ def test_an_output_folder_under_a_file_is_refused_before_any_work(cli, tiny, tmp
 
 
 def test_two_runs_in_the_same_second_get_two_folders(tiny, tmp_path, monkeypatch):
-    from ata.experiment import execute, runner
+    from ata.experiment import folders, runner
     monkeypatch.setenv("ATA_RUNS", str(tmp_path))
-    monkeypatch.setattr(execute.time, "strftime", lambda fmt: "20260101-000000")
+    monkeypatch.setattr(folders.time, "strftime", lambda fmt: "20260101-000000")
     mission = runner.load_session(str(tiny)).mission
     first, second = runner.default_out_dir(mission), runner.default_out_dir(mission)
     assert first.name == "tiny-20260101-000000"

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ata.core.errors import MissionError
+from ata.experiment.folders import prepare_out_dir, writing
 from ata.experiment.report import fmt, md_table, pyplot, save_figure
 
 LOG_FILE = "log.csv"
@@ -326,12 +327,13 @@ def write_curves(run_dir: str | Path, out_dir: str | Path | None = None,
     log = read_log(run_dir)
     out = Path(out_dir) if out_dir is not None else log.path.parent
     written: list[Path] = []
-    out.mkdir(parents=True, exist_ok=True)
-    if with_figures:
-        plt = pyplot()
-        fig = curves_figure(plt, log, f"Training curves: {log.path.parent.name}")
-        written = save_figure(fig, out, "fig_curves")
-        plt.close(fig)
-    path = out / "curves.md"
-    path.write_text(curves_markdown(log, written), encoding="utf-8")
+    prepare_out_dir(out)
+    with writing(out):
+        if with_figures:
+            plt = pyplot()
+            fig = curves_figure(plt, log, f"Training curves: {log.path.parent.name}")
+            written = save_figure(fig, out, "fig_curves")
+            plt.close(fig)
+        path = out / "curves.md"
+        path.write_text(curves_markdown(log, written), encoding="utf-8")
     return log, [path] + written

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import json
 import os
-import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
@@ -30,7 +29,8 @@ from ata.core.errors import MissionError
 from ata.core.kernel import Simulation
 from ata.core.mission import UNCERTAINTY_LEVELS, Mission
 from ata.experiment import runlog
-from ata.experiment.execute import Done, Plan, stamped_folder
+from ata.experiment.execute import Done, Plan
+from ata.experiment.folders import safe_name, stamped_folder
 from ata.experiment.runner import Session, build_once, load_session
 from ata.experiment.suites import MethodSpec, Suite, load_suite
 from ata.experiment.units import Unit, fixed_chunks, make_units, run_units, scenario_ids
@@ -299,11 +299,6 @@ def _rows(job: Job, part: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 # -- the run folder -----------------------------------------------------------------------------
-def safe_name(text: str) -> str:
-    """A file-name-safe form of a label ('w/o.AUX' -> 'w_o.AUX')."""
-    return re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("_") or "method"
-
-
 def write_eval(out_dir: str | Path, suites: list[Suite], jobs: list[Job], result: EvalResult,
                arguments: dict[str, Any]) -> Path:
     """results.csv, missions/*.resolved.toml, plugins.toml and eval.json."""
@@ -313,7 +308,7 @@ def write_eval(out_dir: str | Path, suites: list[Suite], jobs: list[Job], result
         stale.unlink()
     runlog.write_csv(out / "results.csv", result.columns, result.rows)
     for job in jobs:
-        name = f"{safe_name(job.method)}__{job.setting}__{job.level}.resolved.toml"
+        name = f"{safe_name(job.method, 'method')}__{job.setting}__{job.level}.resolved.toml"
         (out / "missions" / name).write_text(job.mission.to_toml(), encoding="utf-8")
     components: dict[str, str] = {}
     per_method: dict[str, dict[str, str]] = {}
@@ -351,7 +346,7 @@ def _json_default(value: Any) -> Any:
 def default_out_dir(suites: list[Suite]) -> Path:
     names = [s.name for s in suites]
     label = "+".join(names) if len(names) <= 3 else "suite"
-    return stamped_folder(f"eval-{safe_name(label)}")
+    return stamped_folder(f"eval-{label}")
 
 
 def default_cache_dir() -> Path:

@@ -12,9 +12,7 @@ results while the folder is still held. The commands differ only in their `Plan`
 from __future__ import annotations
 
 import contextlib
-import os
-import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, ContextManager, TypeVar
 
@@ -24,7 +22,10 @@ from ata.core.errors import MissionError
 from ata.core.mission import Mission
 from ata.core.registry import Register
 from ata.experiment import runlog
+from ata.experiment.folders import (  # noqa: F401  (the run path's folders, re-exported)
+    cannot_write, new_folder, prepare_out_dir, runs_root, stamped_folder)
 from ata.experiment.units import make_units, run_units
+from ata.runtime import memory
 from ata.runtime.executors import make_executor
 
 T = TypeVar("T")
@@ -45,6 +46,7 @@ class Plan:
     :param unit_name: how messages name the units ("batches", "work units").
     :param title: the progress bar's label.
     :param default_out: makes the output folder when none is given.
+    :param notes: what the user is told before the plan runs (how it was cut to fit memory).
     """
 
     missions: list[Mission]
@@ -55,6 +57,7 @@ class Plan:
     unit_name: str
     title: str
     default_out: Callable[[], Path]
+    notes: list[str] = field(default_factory=list)
 
     @property
     def units(self) -> int:
@@ -82,45 +85,6 @@ class Done:
 
 class Interrupted(Exception):
     """Ctrl-C stopped a plan: the message says what is saved and how to go on."""
-
-
-def runs_root() -> Path:
-    """Where output folders go by default: $ATA_RUNS, else runs/."""
-    return Path(os.environ.get("ATA_RUNS", "runs"))
-
-
-def stamped_folder(label: str) -> Path:
-    """A new folder runs/LABEL-TIME, created now: two runs started in the same second get
-    LABEL-TIME and LABEL-TIME-2."""
-    return new_folder(runs_root() / f"{label}-{time.strftime('%Y%m%d-%H%M%S')}")
-
-
-def new_folder(path: Path) -> Path:
-    """Create path, or path-2, path-3 ... if it exists (atomically: mkdir fails on a taken name)."""
-    prepare_out_dir(path.parent)
-    for n in range(1, 10_000):
-        candidate = path if n == 1 else path.with_name(f"{path.name}-{n}")
-        try:
-            candidate.mkdir()
-            return candidate
-        except FileExistsError:
-            continue
-    raise MissionError("--out", None, f"no free folder name like {path}")
-
-
-def prepare_out_dir(path: Path) -> Path:
-    """Create the output folder and check that it can be written, before any work is done; a
-    path under a file or a folder without write permission is one clear error."""
-    path = Path(path)
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-        probe = path / f".ata-write-check-{os.getpid()}"
-        probe.write_bytes(b"")
-        probe.unlink()
-    except OSError as exc:
-        raise MissionError("--out", None, f"cannot write to {path}: "
-                           f"{exc.strerror or exc}") from None
-    return path
 
 
 def open_out_dir(path: str | Path) -> Path:
@@ -157,13 +121,23 @@ def run_plan(plan: Plan, write: Callable[[Done], T], out: str | Path | None = No
     """
     with contextlib.ExitStack() as stack:
         pool = stack.enter_context(make_executor(executor, workers, address))
+        if executor != "ray":             # Ray's workers are not on this machine
+            memory.check(plan.missions, [max((int(c.size) for c in chunks), default=0)
+                                         for chunks in plan.chunks],
+                         pool.describe().get("workers", 1) if pool.parallel else 1)
         out_dir = open_out_dir(out) if out is not None else plan.default_out()
         stack.enter_context(runlog.FolderLock(out_dir))
-        log = runlog.RunLog(out_dir, plan.key, plan.units, force=force, describe=plan.describe)
+        try:
+            log = runlog.RunLog(out_dir, plan.key, plan.units, force=force,
+                                describe=plan.describe,
+                                expected=[ids for chunks in plan.chunks for ids in chunks])
+        except runlog.NotSaved as exc:
+            raise MissionError("", None, f"{exc}; nothing was run") from None
         stack.callback(log.close)
-        message = resume_message(log, out_dir, plan.unit_name)
-        if message and notify is not None:
-            notify(message)
+        for message in plan.notes + [dropped_message(log), resume_message(log, out_dir,
+                                                                          plan.unit_name)]:
+            if message and notify is not None:
+                notify(message)
         units = make_units(plan.missions, plan.chunks, cache=cache, executor=pool,
                            registries=plan.registries)
         before = sum(int(np.asarray(p["scenario"]).size) for p in log.done.values())
@@ -176,6 +150,25 @@ def run_plan(plan: Plan, write: Callable[[Done], T], out: str | Path | None = No
             raise Interrupted(f"interrupted: {log.saved()} of {log.units} {plan.unit_name} are "
                               f"saved in {out_dir}; run the same command with --out {out_dir} "
                               "to go on") from None
+        except runlog.NotSaved as exc:
+            raise MissionError("", None, f"{exc}; {log.saved()} of {log.units} "
+                               f"{plan.unit_name} are saved in {out_dir}: make room (or make "
+                               f"it writable), then run the same command with --out {out_dir} "
+                               "to go on") from None
         log.close()
-        return write(Done(out_dir=out_dir, parts=parts, wall_s=wall, resumed=log.resumed,
-                          executor=pool.describe()))
+        try:
+            return write(Done(out_dir=out_dir, parts=parts, wall_s=wall, resumed=log.resumed,
+                              executor=pool.describe()))
+        except OSError as exc:
+            raise MissionError("", None, f"{cannot_write(exc, out_dir)}; all {log.units} "
+                               f"{plan.unit_name} are saved in {out_dir / runlog.UNITS}: make "
+                               f"room (or make it writable), then run the same command with "
+                               f"--out {out_dir} to write the results") from None
+
+
+def dropped_message(log: runlog.RunLog) -> str | None:
+    """One line when lines of the folder's record did not fit the plan (they run again)."""
+    if not log.dropped:
+        return None
+    return (f"{len(log.dropped)} line(s) of {log.path} did not fit the plan and were dropped, "
+            f"their work units to run again: {'; '.join(log.dropped)}")

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from ata.core.errors import MissionError
+from ata.experiment.folders import prepare_out_dir, writing
 from ata.experiment.results import (BOOTSTRAP_SEED, RESAMPLES, Results, beat_probability,
                                     bootstrap_ci, nanmean, paired_values, read_results)
 
@@ -453,12 +454,13 @@ def write_report(run_dir: str | Path, reference: str | None = None, with_figures
     paired_ref = paired_reference(res, paired_ref)
     if with_figures:
         pyplot()                      # a missing matplotlib fails before anything is written
-    out.mkdir(parents=True, exist_ok=True)
+    prepare_out_dir(out)
     written, paired = [], []
-    if with_figures:
-        paired = paired_differences(res, paired_ref, resamples)
-        written = figures(report, out, paired)
-    path = out / "report.md"
-    path.write_text(markdown(report, written, paired), encoding="utf-8")
+    with writing(out):
+        if with_figures:
+            paired = paired_differences(res, paired_ref, resamples)
+            written = figures(report, out, paired)
+        path = out / "report.md"
+        path.write_text(markdown(report, written, paired), encoding="utf-8")
     return report, [path] + written
 

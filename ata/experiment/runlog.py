@@ -3,11 +3,11 @@ what is missing.
 
 An output folder holds ``plan.json`` (what is planned: a key of everything that decides the
 results, and the number of work units) and ``units.jsonl`` (one line per finished unit, its
-results, appended, flushed and fsynced as the unit finishes). A rerun into the folder with the
-same plan reads the finished units back and runs only the others; since a unit's numbers depend
-on its scenarios alone, the final rows are those of an uninterrupted run. A folder holding
-results of another plan is refused unless the caller forces a fresh start (a plan that finished
-nothing holds none).
+results, appended and fsynced as the unit finishes). A rerun into the folder with the same
+plan reads the finished units back, checked line by line against the plan, and runs only the
+others; since a unit's numbers depend on its scenarios alone, the final rows are those of an
+uninterrupted run. A folder holding results of another plan is refused unless the caller forces
+a fresh start (a plan that finished nothing holds none).
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from ata.core.errors import MissionError
+from ata.experiment.folders import cannot_write
 
 PLAN = "plan.json"
 UNITS = "units.jsonl"
@@ -81,85 +82,172 @@ def _write_atomic(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
+class NotSaved(Exception):
+    """The record could not be written (a full disk, a file size limit, a permission): the
+    message names the file and the reason; what is saved is what the file held before."""
+
+
+REQUIRED = ("scenario", "total", "upper_bound", "reallocations", "warnings")
+"""What every unit's results hold (`ata.experiment.units.run_batch`)."""
+PER_RUN = ("warnings", "wall_s")
+"""The entries of a unit's results that are not one value per scenario."""
+
+
 class RunLog:
     """Opens (or resumes) the record of a plan in `out_dir`.
+
+    On resume every line of units.jsonl is checked against the plan: a line that does not
+    parse, names no unit of the plan, repeats one, lacks a result, or holds other scenarios or
+    other columns than its unit's is dropped (and its unit run again); `dropped` says which and
+    why, and the file is rewritten without them.
 
     :param key: the plan's key (`plan_key`); a folder recorded under another key is refused.
     :param units: the number of work units of the plan.
     :param force: start afresh in a folder of another plan (its record is dropped).
     :param describe: what the plan is, written to plan.json for people.
+    :param expected: each unit's scenario ids, in unit order (None: not checked).
+    :raises NotSaved: when the folder's record cannot be read or written.
     """
 
     def __init__(self, out_dir: str | Path, key: str, units: int, *, force: bool = False,
-                 describe: dict[str, Any] | None = None):
+                 describe: dict[str, Any] | None = None,
+                 expected: list[np.ndarray] | None = None):
         self.dir = Path(out_dir)
         self.key = key
         self.units = units
+        self.expected = expected
         self.done: dict[int, dict[str, Any]] = {}
+        self.dropped: list[str] = []
         plan, log = self.dir / PLAN, self.dir / UNITS
-        same = False
-        if plan.exists():
-            try:
-                same = json.loads(plan.read_text(encoding="utf-8")).get("key") == key
-            except (json.JSONDecodeError, AttributeError):
-                same = False
-        holds = (self.dir / "results.csv").exists() or (log.exists() and log.stat().st_size > 0)
-        if not same and not force and holds:
-            raise MissionError("--out", None, f"{self.dir} holds the results of another plan; "
-                               "choose another folder, or --force to start it over there")
-        if same:
-            self.done = self._read(log)
-        else:
-            for stale in (log, self.dir / "results.csv"):
-                stale.unlink(missing_ok=True)
-            _write_atomic(plan, json.dumps({"key": key, "units": units, **(describe or {})},
-                                           indent=2, default=str) + "\n")
+        self.path = log
+        try:
+            same = False
+            if plan.exists():
+                try:
+                    same = json.loads(plan.read_text(encoding="utf-8")).get("key") == key
+                except (json.JSONDecodeError, AttributeError, UnicodeDecodeError):
+                    same = False
+            holds = ((self.dir / "results.csv").exists()
+                     or (log.exists() and log.stat().st_size > 0))
+            if not same and not force and holds:
+                raise MissionError("--out", None, f"{self.dir} holds the results of another "
+                                   "plan; choose another folder, or --force to start it over "
+                                   "there")
+            if same:
+                self.done = self._read(log, repair=True)
+            else:
+                for stale in (log, self.dir / "results.csv"):
+                    stale.unlink(missing_ok=True)
+                _write_atomic(plan, json.dumps({"key": key, "units": units, **(describe or {})},
+                                               indent=2, default=str) + "\n")
+            self._fd = os.open(log, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise NotSaved(cannot_write(exc, log)) from None
         self.resumed = len(self.done)
-        self._file = open(log, "a", encoding="utf-8")
 
-    def _read(self, log: Path) -> dict[int, dict[str, Any]]:
-        """The finished units; a line cut short by a kill is dropped (and cut off the file)."""
+    def _problem(self, index: int, part: Any, columns: set[str] | None) -> str | None:
+        """Why a unit's record does not fit the plan (None when it does)."""
+        if not 0 <= index < self.units:
+            return f"unit {index} is not one of the plan's (0 to {self.units - 1})"
+        if not isinstance(part, dict):
+            return f"unit {index} holds no results"
+        missing = [k for k in REQUIRED if k not in part]
+        if missing:
+            return f"unit {index} lacks {', '.join(missing)}"
+        if columns is not None and set(part) != columns:
+            return f"unit {index} holds other columns than the other units"
+        if self.expected is None:
+            return None
+        want = np.asarray(self.expected[index])
+        ids = np.asarray(part["scenario"])
+        if ids.shape != want.shape or not np.array_equal(ids, want):
+            return (f"unit {index} holds other scenarios than the plan's "
+                    f"({int(want[0])} to {int(want[-1])})")
+        for name, value in part.items():
+            if name not in PER_RUN and np.shape(value) != want.shape:
+                return f"unit {index}'s {name} does not hold one value per scenario"
+        return None
+
+    def _read(self, log: Path, repair: bool = False) -> dict[int, dict[str, Any]]:
+        """The finished units that fit the plan. A last line cut short by a kill is dropped
+        silently, a line that does not fit with a note in `dropped`; with `repair`, the file
+        is rewritten without them."""
         if not log.exists():
             return {}
-        done: dict[int, dict[str, Any]] = {}
-        good = 0
         with open(log, "rb") as f:
             data = f.read()
-        for line in data.splitlines(keepends=True):
+        entries: list[tuple[int, int, Any, bytes]] = []      # (line number, unit, part, line)
+        dropped: list[tuple[int, str]] = []
+        lines = data.splitlines(keepends=True)
+        for number, line in enumerate(lines, 1):
             if not line.endswith(b"\n"):
-                break
+                continue                                     # the last one, cut short
             try:
                 entry = json.loads(line)
-                index = int(entry["unit"])
-                part = _decode(entry["part"])
-            except (ValueError, KeyError, TypeError):
-                break
-            if 0 <= index < self.units:
-                done[index] = part
-            good += len(line)
-        if good < len(data):
-            with open(log, "r+b") as f:
-                f.truncate(good)
+                entries.append((number, int(entry["unit"]), _decode(entry["part"]), line))
+            except (ValueError, KeyError, TypeError, AttributeError):
+                dropped.append((number, "not a unit's record"))
+        # the columns most units hold (metrics differ between missions, not between units)
+        sets = [frozenset(p) for _, _, p, _ in entries if isinstance(p, dict)]
+        columns = set(max(sets, key=sets.count)) if sets else None
+        done: dict[int, dict[str, Any]] = {}
+        kept: list[bytes] = []
+        for number, index, part, line in entries:
+            problem = self._problem(index, part, columns)
+            if problem is None and index in done:
+                problem = f"unit {index} again"
+            if problem is not None:
+                dropped.append((number, problem))
+                continue
+            done[index] = part
+            kept.append(line)
+        if repair:
+            self.dropped = [f"line {n}: {why}" for n, why in sorted(dropped)]
+            if len(kept) < len(lines):
+                _write_atomic_bytes(log, b"".join(kept))
         return done
 
     def add(self, index: int, part: dict[str, Any]) -> None:
-        """Record a finished unit durably (flushed and fsynced before this returns)."""
-        self._file.write(json.dumps({"unit": index, "part": _encode(part)}) + "\n")
-        self._file.flush()
-        os.fsync(self._file.fileno())
+        """Record a finished unit durably (written and fsynced before this returns); when it
+        cannot be written whole, the file is cut back to the units before it (`NotSaved`)."""
+        data = memoryview((json.dumps({"unit": index, "part": _encode(part)}) + "\n").encode())
+        size = os.fstat(self._fd).st_size
+        try:
+            while data:
+                data = data[os.write(self._fd, data):]
+            os.fsync(self._fd)
+        except OSError as exc:
+            try:
+                os.ftruncate(self._fd, size)                 # no half line left behind
+            except OSError:
+                pass
+            raise NotSaved(cannot_write(exc, self.path)) from None
         self.done[index] = part
 
     def saved(self) -> int:
         """How many finished units the file holds, read back from disk (what a rerun finds,
         even when an interrupt came in the middle of `add`)."""
-        self._file.flush()
-        return len(self._read(self.dir / UNITS))
+        try:
+            return len(self._read(self.path))
+        except OSError:
+            return len(self.done)
 
     def missing(self) -> list[int]:
         return [i for i in range(self.units) if i not in self.done]
 
     def close(self) -> None:
-        self._file.close()
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+
+def _write_atomic_bytes(path: Path, data: bytes) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "wb") as f:
+        f.write(data)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
 
 
 def parts_and_todo(log: RunLog | None, units: int) -> tuple[list[Any], list[int]]:
@@ -207,9 +295,12 @@ class FolderLock:
             if same:
                 break
             os.close(fd)
-        os.ftruncate(fd, 0)
-        os.write(fd, json.dumps({"pid": os.getpid(), "command": " ".join(sys.argv),
-                                 "started": time.strftime("%Y-%m-%d %H:%M:%S")}).encode())
+        try:                          # the holder's details; a full disk leaves them out
+            os.ftruncate(fd, 0)
+            os.write(fd, json.dumps({"pid": os.getpid(), "command": " ".join(sys.argv),
+                                     "started": time.strftime("%Y-%m-%d %H:%M:%S")}).encode())
+        except OSError:
+            pass
         self._fd = fd
         return self
 

@@ -7,6 +7,7 @@ import contextlib
 import dataclasses
 import json
 import math
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -22,7 +23,9 @@ from ata.core.mission import Mission
 from ata.core.registry import Register, collect_components, get_plugin_manager, providers
 from ata.experiment import runlog
 from ata.experiment.execute import Done, Plan, stamped_folder
-from ata.experiment.units import RUN_CHUNK, chunks_of, make_units, run_units
+from ata.experiment.units import (RUN_CHUNK, chunks_of, fixed_chunks, make_units, run_units,
+                                  scenario_ids)
+from ata.runtime import memory
 from ata.runtime.executors import Executor, ProcessExecutor, SerialExecutor
 from ata.runtime.heldout import EVAL_FIRST_SCENARIO
 from ata.runtime.inputs import file_digest
@@ -152,6 +155,19 @@ def build_trainer(session: Session) -> Any:
     return trainer
 
 
+def training_saved(run_dir: str | Path) -> str:
+    """What an interrupted `ata train` left in its run folder and how to go on, read from the
+    folder's files (the trainers save checkpoint.pt as they go)."""
+    folder = Path(run_dir)
+    checkpoint = folder / "checkpoint.pt"
+    if not checkpoint.is_file():
+        return (f"interrupted before the first checkpoint: nothing to resume in {folder}; run "
+                "the same command again to start over")
+    saved = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(checkpoint.stat().st_mtime))
+    return (f"interrupted: the last checkpoint, saved {saved}, is {checkpoint}; run ata train "
+            f"--resume {folder} to go on from it (the steps after it run again)")
+
+
 @dataclass
 class RunResult:
     """Per-scenario results of a run, in scenario order."""
@@ -193,14 +209,26 @@ def plan_key(session: Session, chunks: list[np.ndarray]) -> str:
 
 def mission_plan(session: Session, workers: int | None = None,
                  chunk_size: int = RUN_CHUNK) -> Plan:
-    """`ata run`'s plan: one job, the mission's scenarios in batches (`units.chunks_of`)."""
+    """`ata run`'s plan: one job, the mission's scenarios in batches (`units.chunks_of`), cut
+    smaller when `workers` of them at once would not fit in memory (`ata.runtime.memory`)."""
     m = session.mission
-    chunks = chunks_of(m, workers or m.settings.workers, chunk_size)
+    workers = workers or m.settings.workers
+    chunks = chunks_of(m, workers, chunk_size)
+    notes = []
+    # a batch too big for memory is cut smaller (the rows do not depend on the batches)
+    size, limit = max(int(c.size) for c in chunks), memory.memory_limit()
+    fits = memory.largest_batch(m, size, workers, limit)
+    if fits == 0:
+        raise memory.too_large(m, workers, limit)
+    if fits < size:
+        chunks = fixed_chunks(scenario_ids(m), fits)
+        notes.append(f"batches of {fits} scenarios, not {size}: a bigger batch would need more "
+                     f"than {memory.limit_text(limit)}")
     return Plan(missions=[m], registries=[session.registry], chunks=[chunks],
                 key=plan_key(session, chunks), unit_name="batches",
                 describe={"mission": m.settings.name, "scenarios": m.settings.scenarios},
                 title=f"{m.settings.name}: {m.settings.scenarios} scenarios",
-                default_out=lambda: default_out_dir(m))
+                default_out=lambda: default_out_dir(m), notes=notes)
 
 
 def write_done(session: Session, done: Done) -> RunResult:

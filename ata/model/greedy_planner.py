@@ -119,6 +119,19 @@ class GreedyPlanner:
         return out
 
 
+PAIRWISE_ARRAYS = 5
+"""How many (batch, POIs, POIs) float64 arrays `plan` holds at once at its peak: the POI-to-POI
+gaps in x and y, their squares and the distances (about 4 measured with 500 and 1000 POIs)."""
+
+
+def peak_bytes(batch: int, humans: int, robots: int, tasks: int) -> int:
+    """An estimate of the planner's peak working memory for a batch of `batch` scenarios, in
+    bytes: its (batch, POIs, POIs) arrays dominate, its (batch, robots or humans, POIs) ones
+    come next. A planner that builds fewer of them lowers this estimate here."""
+    per_scenario = PAIRWISE_ARRAYS * tasks * tasks + 16 * (robots + humans) * tasks + 64 * tasks
+    return 8 * batch * per_scenario
+
+
 def plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray) -> Allocation:
     """Plan the triples of the `open_` (B, P) tasks; the others keep their previous triple."""
     rows = np.nonzero(open_.any(axis=1))[0]

@@ -109,12 +109,15 @@ class RobotModel:
         routing: str = param("nearest", choices=tuple(ROUTINGS),
                              help="order in which a robot visits its POIs")
 
+        def __post_init__(self) -> None:
+            # checked with the table, so that the error names the mission file (or --set)
+            if len(self.skill_speed) != 3:
+                from ata.core.errors import MissionError
+                raise MissionError("[robot]", "skill_speed", "needs exactly three factors "
+                                   "(low, medium, high skill)")
+
     def __init__(self, settings: "RobotModel.Settings", mission: object):
         self.settings = settings
-        if len(settings.skill_speed) != 3:
-            from ata.core.errors import MissionError
-            raise MissionError("[robot]", "skill_speed", "needs exactly three factors (low, "
-                               "medium, high skill)")
         self.skill_speed = np.asarray(settings.skill_speed, dtype=float)
         self.next_targets = ROUTINGS[settings.routing]
         self.constants = RobotConstants(capture_s=settings.capture_s, replan_s=settings.replan_s,

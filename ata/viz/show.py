@@ -9,14 +9,17 @@ seed and its id alone), and is checked against the run's ``results.csv`` row.
 from __future__ import annotations
 
 import csv
+import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from ata.experiment import runner
-from ata.experiment.execute import runs_root
+from ata.core import mission as mission_mod
 from ata.core.errors import MissionError
-from ata.viz import draw
+from ata.experiment import runner
+from ata.experiment.folders import named_folder, prepare_out_dir, writing
 from ata.experiment.units import scenario_ids
+from ata.viz import draw
+from ata.viz.animate import write_animation
 from ata.viz.record import Episode, replay
 
 RUN_MISSION = "mission.resolved.toml"
@@ -61,13 +64,34 @@ def run_score(run_dir: Path, scenario: int) -> float | None:
     return None
 
 
+def check_whole(source: str, session: runner.Session) -> None:
+    """Refuse a run folder's resolved mission that lacks a key of its own resolution: the file
+    was cut short (or written by another version), and defaults would fill the gap, replaying
+    another mission than the run's."""
+    written = mission_mod.read_toml(source)
+    resolved = tomllib.loads(session.mission.to_toml())
+    missing = [f"[{table}]" if table not in written else f"[{table}] {key}"
+               for table, keys in resolved.items() for key in keys
+               if not isinstance(written.get(table), dict) or key not in written[table]]
+    missing = list(dict.fromkeys(missing))
+    if missing:
+        more = f" and {len(missing) - 3} more" if len(missing) > 3 else ""
+        raise MissionError("", None, f"not a whole resolved mission: {', '.join(missing[:3])}"
+                           f"{more} missing (the file was cut short, or written by another "
+                           "version of ata); a replay would fill them with defaults and show "
+                           "another mission than the run's", file=source)
+
+
 def show(target: str | None, scenario: int | None, overrides: list[str] | None = None,
-         out: str | Path | None = None) -> Shown:
+         out: str | Path | None = None, animate: bool = False) -> Shown:
     """Replay `scenario` (default: the mission's first) of a run folder or mission file and
-    write its three pictures, PNG and SVG, to `out` (default: RUN_DIR/show-N, or
-    runs/show-NAME-N). Bad input raises MissionError before anything runs or is written."""
+    write its three pictures, PNG and SVG (with `animate`, the map through time as a GIF too),
+    to `out` (default: RUN_DIR/show-N, or runs/show-NAME-N). Bad input raises MissionError
+    before anything runs or is written."""
     source, run_dir = mission_of(target)
     session = runner.load_session(source, list(overrides or []))
+    if run_dir is not None:
+        check_whole(source, session)
     m = session.mission
     ids = scenario_ids(m)
     first, last = int(ids[0]), int(ids[-1])
@@ -76,11 +100,15 @@ def show(target: str | None, scenario: int | None, overrides: list[str] | None =
         raise MissionError("--scenario", None, f"{scenario} is not one of the mission's "
                            f"scenarios: ids {first} to {last}", file=source)
     draw.figure_class()                   # no matplotlib: say so before the replay
-    episode = replay(m, session.registry, scenario)
     if out is None:
         out = (run_dir / f"show-{scenario}" if run_dir is not None else
-               runs_root() / f"show-{m.settings.name}-{scenario}")
-    written = draw.write_figures(episode, out)
+               named_folder(f"show-{m.settings.name}-{scenario}"))
+    out = prepare_out_dir(out)            # an unwritable --out: say so before the replay
+    episode = replay(m, session.registry, scenario)
+    with writing(out):
+        written = draw.write_figures(episode, out)
+        if animate:
+            written.append(write_animation(episode, out))
     checked = run_dir is not None and not overrides
     score = run_score(run_dir, scenario) if checked else None
     return Shown(episode=episode, written=written, out_dir=Path(out), run_score=score,
