@@ -16,12 +16,18 @@ architecture; each row is the median of ``repeats`` timings of ``scenarios x sam
 - one pi_C / pi_TR training step (ITA frozen), with the reconstruction: rollouts and update.
 
 Compare the ratios within one run: machines are shared and noisy.
+
+`recipe_estimate` times the built-in (a) training recipe (ata/missions/train_ata_hrl.toml) by
+its parts, through the trainer's own phase methods on a few steps, and extrapolates to the
+recipe's step counts (bench_fast.py prints it).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import statistics
+import tempfile
 import time
 
 import numpy as np
@@ -32,6 +38,7 @@ from rich.table import Table
 from ata.core.kernel import Simulation, build_component
 from ata.experiment.runner import BASELINE_MISSION, build_trainer, load_session, training_mission_for
 from ata.plugins.ata_hrl.components import AttentionITA
+from ata.training import TrainRun
 
 
 def timed(fn, repeats: int) -> tuple[float, dict]:
@@ -41,6 +48,77 @@ def timed(fn, repeats: int) -> tuple[float, dict]:
         info = fn(i) or {}
         times.append(time.perf_counter() - t0)
     return statistics.median(times), info
+
+
+def validations(steps: int, eval_every: int) -> int:
+    """Validations of a policy phase of `steps` steps: at step 0, every `eval_every` steps,
+    and at the last step (the trainer's rule in ``train_policy``)."""
+    return 1 + sum(1 for k in range(1, steps + 1) if k % eval_every == 0 or k == steps) \
+        if steps else 0
+
+
+def recipe_estimate(aux_steps: int = 20, ita_steps: int = 2, ctr_steps: int = 1
+                    ) -> list[tuple[str, float, int, int, float]]:
+    """The built-in (a) recipe's wall time by part, extrapolated from a short run of each
+    phase. The trainer of ata/missions/train_ata_hrl.toml is built as `ata train --plugins
+    ctr,aux` builds it and its phase methods run as ``run`` calls them, with fewer steps, one
+    teacher batch for the reconstruction data, and validations only at a phase's first and
+    last step; the teacher rollouts (``aux_data``), validations (``evaluate``) and checkpoint
+    writes (``save``) are timed apart, and the rest of a phase is its steps.
+
+    Returns (part, measured seconds, calls measured, calls in the recipe, extrapolated
+    seconds) rows: the extrapolation is linear in the calls."""
+    recipe = load_session(str(training_mission_for(["ctr", "aux"])))
+    full = build_trainer(recipe).s
+    session = load_session(str(training_mission_for(["ctr", "aux"])), [
+        f"ata_hrl.aux_steps={aux_steps}", f"ata_hrl.ita_steps={ita_steps}",
+        f"ata_hrl.ctr_steps={ctr_steps}", "ata_hrl.aux_batches=1",
+        f"ata_hrl.eval_every={max(ita_steps, ctr_steps) + 1}"])
+    trainer = build_trainer(session)
+    assert trainer.phases()["status"] == 0 and trainer.phases()["cond"] == 0, \
+        "the recipe gained a phase this estimate does not time"
+    spent = {"aux_data": [0.0, 0], "evaluate": [0.0, 0], "save": [0.0, 0]}
+
+    def timed_method(name):
+        inner = getattr(trainer, name)
+
+        def wrapper(*a, **k):
+            t0 = time.perf_counter()
+            try:
+                return inner(*a, **k)
+            finally:
+                spent[name][0] += time.perf_counter() - t0
+                spent[name][1] += 1
+        setattr(trainer, name, wrapper)     # the instance's: the phase loops call it
+
+    for name in spent:
+        timed_method(name)
+    torch.set_num_threads(trainer.s.threads)
+    phase_s = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        trainer.run_folder = TrainRun(tmp, session.mission.to_toml(), trainer.log_fields)
+        for phase, call in (("aux", trainer.train_aux), ("ita", lambda: trainer.train_policy(
+                "ita")), ("ctr", lambda: trainer.train_policy("ctr"))):
+            before = {k: v[0] for k, v in spent.items()}
+            t0 = time.perf_counter()
+            call()
+            phase_s[phase] = (time.perf_counter() - t0
+                              - sum(spent[k][0] - before[k] for k in spent))
+            if phase == "ita":
+                ita_val = spent["evaluate"][:]
+    ctr_val = [spent["evaluate"][0] - ita_val[0], spent["evaluate"][1] - ita_val[1]]
+    saves = full.ita_steps // full.checkpoint_every + full.ctr_steps // full.checkpoint_every \
+        + validations(full.ita_steps, full.eval_every) \
+        + validations(full.ctr_steps, full.eval_every) + 4
+    rows = [("teacher rollouts (reconstruction data)", *spent["aux_data"],
+             full.aux_batches + 1),
+            ("aux steps", phase_s["aux"], aux_steps, full.aux_steps),
+            ("ITA steps", phase_s["ita"], ita_steps, full.ita_steps),
+            ("ITA validations", *ita_val, validations(full.ita_steps, full.eval_every)),
+            ("CTR steps", phase_s["ctr"], ctr_steps, full.ctr_steps),
+            ("CTR validations", *ctr_val, validations(full.ctr_steps, full.eval_every)),
+            ("checkpoint writes", *spent["save"], saves)]
+    return [(part, sec, n, m, sec / max(n, 1) * m) for part, sec, n, m in rows]
 
 
 def main() -> None:
