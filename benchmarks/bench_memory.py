@@ -11,8 +11,10 @@ Each run is made in a fresh child process, so that its peak is its own:
   run's start): exact and free of the allocator's noise, but it slows the run, so a traced run is
   not timed.
 
-The growth law is the slope of log(peak) against log(POIs) between neighbouring sizes: 1 is
-linear, 2 quadratic (greedy's (batch, POIs, POIs) distance arrays).
+The growth law is the slope of log(peak - floor) against log(POIs) between neighbouring sizes,
+where the floor is the traced peak of the same run with 10 POIs (what does not grow with the
+POIs: the scenario setup, the records of the other groups): 1 is linear, 2 quadratic (greedy's
+(batch, POIs, POIs) distance arrays).
 """
 
 from __future__ import annotations
@@ -71,14 +73,18 @@ def isolated(setting: str, extra: list[str], scenarios: int, batch: int,
 
 def poi_growth(pois: list[int], batch: int) -> list[dict]:
     """Traced peak memory of greedy (with reallocation) on the (a) team with `pois` POIs, one
-    batch of `batch` scenarios each, and the growth exponent from the size before."""
+    batch of `batch` scenarios each, its growth over the floor (the peak at 10 POIs), and the
+    growth exponent from the size before."""
     rows = []
+    floor = isolated("a", ["mission.tasks=10", *GREEDY_REALLOC], batch, batch,
+                     traced=True)["traced_peak_mib"]
     for p in pois:
         r = isolated("a", [f"mission.tasks={p}", *GREEDY_REALLOC], batch, batch, traced=True)
         r["pois"] = p
+        r["growth_mib"] = max(r["traced_peak_mib"] - floor, 1e-9)
         if rows:
             prev = rows[-1]
-            r["exponent"] = math.log(r["traced_peak_mib"] / prev["traced_peak_mib"]) \
+            r["exponent"] = math.log(r["growth_mib"] / prev["growth_mib"]) \
                 / math.log(p / prev["pois"])
         rows.append(r)
     return rows
@@ -101,7 +107,8 @@ def main() -> None:
           "peak, growth exponent from the size before):")
     for r in poi_growth([int(x) for x in args.pois.split(",")], args.batch):
         exp = f", exponent {r['exponent']:.2f}" if "exponent" in r else ""
-        print(f"  {r['pois']:>5} POIs: {r['traced_peak_mib']:8.1f} MiB traced, peak RSS "
+        print(f"  {r['pois']:>5} POIs: {r['traced_peak_mib']:8.1f} MiB traced ("
+              f"{r['growth_mib']:.1f} over 10 POIs'), peak RSS "
               f"{r['rss_peak_mib']:.0f} MiB{exp}")
 
 
