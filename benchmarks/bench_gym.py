@@ -47,6 +47,18 @@ def episodes_per_second(envs, rounds: int, seed: int) -> tuple[float, float]:
     return done / wall, wall
 
 
+def vector_vs_single(path: str, envs: int, rounds: int, seed: int) -> dict[str, float]:
+    """Episodes per second and wall seconds of `envs` single environments under SyncVectorEnv
+    and of one vector environment of `envs`, on the team of mission `path`."""
+    session = load_session(path)
+    single = SyncVectorEnv([lambda: CentralisedEnv(session)] * envs)
+    vector = CentralisedVectorEnv(session, num_envs=envs)
+    eps_single, wall_single = episodes_per_second(single, rounds, seed)
+    eps_vector, wall_vector = episodes_per_second(vector, rounds, seed)
+    return {"single": eps_single, "vector": eps_vector, "ratio": eps_vector / eps_single,
+            "wall_single": wall_single, "wall_vector": wall_vector}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--envs", type=int, default=64, help="environments N")
@@ -57,14 +69,10 @@ def main() -> None:
     for col in ("team", "N single", "vector", "ratio", "wall single", "wall vector"):
         table.add_column(col, justify="left" if col == "team" else "right")
     for team, path in TEAMS.items():
-        session = load_session(path)
-        single = SyncVectorEnv([lambda: CentralisedEnv(session)] * args.envs)
-        vector = CentralisedVectorEnv(session, num_envs=args.envs)
-        eps_single, wall_single = episodes_per_second(single, args.rounds, args.seed)
-        eps_vector, wall_vector = episodes_per_second(vector, args.rounds, args.seed)
-        table.add_row(team, f"{eps_single:,.1f}", f"{eps_vector:,.1f}",
-                      f"{eps_vector / eps_single:.1f}x", f"{wall_single:.1f} s",
-                      f"{wall_vector:.1f} s")
+        r = vector_vs_single(path, args.envs, args.rounds, args.seed)
+        table.add_row(team, f"{r['single']:,.1f}", f"{r['vector']:,.1f}",
+                      f"{r['ratio']:.1f}x", f"{r['wall_single']:.1f} s",
+                      f"{r['wall_vector']:.1f} s")
     Console().print(table)
 
 

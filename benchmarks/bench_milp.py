@@ -39,7 +39,7 @@ def main() -> None:
         sim.reset()
         truth = Observation()
         sim.pm.hook.ata_observe(sim=sim.sim, obs=truth)
-        ctx = sim._context(truth, truth, {})
+        ctx = sim._context(truth, {})
         settings = session.mission.component_settings["milp"]
         sols, sizes = [], []
         for d in M.scenario_data(ctx, session.mission):

@@ -7,6 +7,8 @@
 For each folder: the elapsed wall time of the whole `ata eval` (eval.json), and per (method,
 setting) the summed wall time of its chunks (each chunk's time in the worker that ran it, so the
 per-method times add up to about workers x elapsed).
+
+`run_suite` runs the suite itself with an empty MILP cache (what bench_fast.py times).
 """
 
 from __future__ import annotations
@@ -14,8 +16,17 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
 from collections import defaultdict
 from pathlib import Path
+
+SUITE = Path(__file__).resolve().parent.parent / "examples" / "paper_suite.toml"
+SUITE_SCENARIOS = 500
+"""Scenarios per cell of the paper's suite."""
 
 
 def breakdown(run_dir: Path) -> tuple[float, dict[tuple[str, str], float], list[str]]:
@@ -28,6 +39,26 @@ def breakdown(run_dir: Path) -> tuple[float, dict[tuple[str, str], float], list[
             if row["method"] not in methods:
                 methods.append(row["method"])
     return float(meta["wall_s"]), per, methods
+
+
+def run_suite(scenarios: int, workers: int = 2) -> tuple[float, dict[tuple[str, str], float]]:
+    """(wall seconds of the whole `ata eval` process, per-(method, setting) summed chunk
+    seconds) of the paper's suite at `scenarios` per cell, `workers` workers, with an empty
+    MILP cache (a fresh folder, deleted after)."""
+    ata = shutil.which("ata") or str(Path(sys.executable).with_name("ata"))
+    tmp = Path(tempfile.mkdtemp(prefix="bench_suite_"))
+    try:
+        t0 = time.perf_counter()
+        out = subprocess.run([ata, "eval", str(SUITE), "-w", str(workers), "--scenarios",
+                              str(scenarios), "--cache", str(tmp / "cache"), "-o",
+                              str(tmp / "out"), "--quiet"], capture_output=True, text=True)
+        if out.returncode != 0:
+            raise RuntimeError(f"ata eval failed: {out.stderr[-2000:]}")
+        wall = time.perf_counter() - t0
+        _, per, _ = breakdown(tmp / "out")
+        return wall, dict(per)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def main() -> None:

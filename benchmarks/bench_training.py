@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import statistics
+import tempfile
 import time
 
 import numpy as np
@@ -42,6 +43,58 @@ def timed(fn, repeats: int) -> tuple[float, dict]:
         info = fn(i) or {}
         times.append(time.perf_counter() - t0)
     return statistics.median(times), info
+
+
+def validations(steps: int, eval_every: int) -> int:
+    """Validations of a policy phase of `steps` steps: at step 0, every `eval_every` steps,
+    and at the last step (the phase loop's rule)."""
+    return 1 + sum(1 for k in range(1, steps + 1) if k % eval_every == 0 or k == steps) \
+        if steps else 0
+
+
+def recipe_estimate(aux_steps: int = 20, ita_steps: int = 2, ctr_steps: int = 1
+                    ) -> list[tuple[str, float, int, int, float]]:
+    """The built-in (a) recipe's wall time by part, extrapolated from a few calls of each part.
+
+    The trainer of ata/missions/train_ata_hrl.toml is built as `ata train --plugins ctr,aux`
+    builds it; its phases' own calls are timed: one teacher batch of reconstruction data
+    (``aux.rows``), `aux_steps` aux steps, `ita_steps` ITA and `ctr_steps` CTR steps, one
+    validation of each policy phase and one checkpoint write. Returns (part, measured seconds,
+    calls measured, calls in the recipe, extrapolated seconds) rows: linear in the calls."""
+    session = load_session(str(training_mission_for(["ctr", "aux"])))
+    trainer = build_trainer(session)
+    s, phases = trainer.s, trainer.phases()
+    assert phases["status"] == 0 and phases["cond"] == 0, \
+        "the recipe gained a phase this estimate does not time"
+    torch.set_num_threads(s.threads)
+
+    def clock(fn, n: int) -> float:
+        t0 = time.perf_counter()
+        for k in range(n):
+            fn(k)
+        return time.perf_counter() - t0
+
+    def save(_k):
+        with tempfile.TemporaryDirectory() as tmp:
+            torch.save(trainer.checkpoint(), f"{tmp}/checkpoint.pt")
+
+    def aux_data(_k):
+        trainer.aux.data = trainer.aux.rows(0, 1)
+
+    rows = [("teacher rollouts (reconstruction data)", clock(aux_data, 1), 1, s.aux_batches + 1),
+            ("aux steps", clock(trainer.aux.step, aux_steps), aux_steps, phases["aux"])]
+    for part in (trainer.ita, trainer.ctr):
+        part.start()
+        steps = phases[part.name]
+        label = part.name.upper()
+        n = ita_steps if part.name == "ita" else ctr_steps
+        rows.append((f"{label} steps", clock(part.step, n), n, steps))
+        rows.append((f"{label} validations", clock(lambda _k: trainer.validate(part.name), 1), 1,
+                     validations(steps, s.eval_every)))
+    saves = sum(phases[p] // s.checkpoint_every + validations(phases[p], s.eval_every)
+                for p in ("ita", "ctr")) + 4
+    rows.append(("checkpoint writes", clock(save, 1), 1, saves))
+    return [(part, sec, n, m, sec / max(n, 1) * m) for part, sec, n, m in rows]
 
 
 def main() -> None:

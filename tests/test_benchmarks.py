@@ -16,3 +16,30 @@ def test_the_training_benchmark_runs_every_row():
     for row in ("simulator + greedy", "ITA decoder, prior alone", "ITA decoder with the network",
                 "ITA training step", "pi_C / pi_TR training step"):
         assert row in out.stdout, row
+
+
+def test_the_recipe_estimate_counts_validations_as_the_trainer_does():
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from bench_training import validations
+    # step 0, every 15th step, and the last: 800 ITA steps -> 0, 15, ..., 795, 800
+    assert validations(800, 15) == 55
+    assert validations(30, 15) == 3
+    assert validations(3, 4) == 2
+    assert validations(0, 15) == 0
+
+
+def test_the_memory_benchmark_reports_a_child_run():
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from bench_memory import GREEDY_REALLOC, isolated
+    out = isolated("a", [*GREEDY_REALLOC, "mission.tasks=12"], 2, 2, traced=True)
+    assert set(out) == {"wall_s", "rate", "rss_base_mib", "rss_peak_mib", "elapsed_s",
+                        "traced_peak_mib"}
+    assert out["rss_peak_mib"] >= out["rss_base_mib"] > 0
+    assert out["traced_peak_mib"] > 0
+
+
+def test_the_fast_benchmark_driver_imports_every_figure():
+    out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_fast.py"), "--help"],
+                         capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "--quick" in out.stdout

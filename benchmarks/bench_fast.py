@@ -1,0 +1,171 @@
+"""The six figures of the "Fast" goals (docs/benchmarks.md), each measured in one run, beside its goal.
+
+Usage: python benchmarks/bench_fast.py [--quick] [--only 1,2,...]
+
+1. the paper's suite (`ata eval examples/paper_suite.toml -w 2`) with an empty ITA-MILP cache,
+   wall time (--quick: 50 scenarios per cell, one `ata eval` unit each as in the full suite,
+   extrapolated tenfold to the 500 of the suite);
+2. ATA-HRL's CPU time per scenario over greedy's, settings (a) and (b), in `ata run`'s batches;
+3. greedy with on-event reallocation, batch 500 over batch 1 throughput, (a) and (b);
+4. ATA-HRL's (a) training recipe (ata/missions/train_ata_hrl.toml): a few steps of each part
+   timed, extrapolated to the recipe's step counts;
+5. peak memory of setting (b) at batch 500 (greedy), and its growth with the number of POIs;
+6. the gym vector env against single envs, setting (a).
+
+Each figure has one implementation, in the benchmark it belongs to (bench_suite, bench_batches,
+bench_kernel, bench_training, bench_memory, bench_gym); this driver calls them. Figures are
+ratios or sizes within one run: the machine is shared and noisy, so compare ratios, and run
+twice. What is measured and what is extrapolated is printed with each figure.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+import bench_batches  # noqa: E402
+import bench_gym  # noqa: E402
+import bench_kernel  # noqa: E402
+import bench_memory  # noqa: E402
+import bench_suite  # noqa: E402
+import bench_training  # noqa: E402
+from ata.experiment.runner import BASELINE_MISSION, BUILTIN_MISSION, load_session  # noqa: E402
+from ata.experiment.units import RUN_CHUNK, fixed_chunks, scenario_ids  # noqa: E402
+
+ATA_HRL_B = HERE.parent / "examples" / "missions" / "ata_hrl_b.toml"
+# the quick suite runs 50 scenarios a cell: one unit of `ata eval`'s 50 per cell, as in the
+# full suite, so that each unit's batch (and its per-epoch cost) is the full suite's and the
+# tenfold extrapolation holds; at 20 a cell the learned methods' batches are smaller and their
+# per-scenario cost higher (measured: the extrapolation came out several times too high)
+QUICK = {"suite": 50, "per_scenario": {"a": 100, "b": 50}, "single": 10, "repeats": 1,
+         "recipe": (10, 1, 1), "pois": [130, 260, 520], "poi_batch": 5, "gym_rounds": 2}
+FULL = {"suite": 500, "per_scenario": {"a": 500, "b": 200}, "single": 20, "repeats": 2,
+        "recipe": (50, 4, 2), "pois": [130, 260, 520, 1040], "poi_batch": 10, "gym_rounds": 5}
+SUMMARY: list[str] = []
+
+
+def say(line: str, summary: bool = False) -> None:
+    print(line, flush=True)
+    if summary:
+        SUMMARY.append(line)
+
+
+def figure_suite(cfg: dict) -> None:
+    n = cfg["suite"]
+    wall, per = bench_suite.run_suite(n, workers=2)
+    scale = bench_suite.SUITE_SCENARIOS / n
+    total = sum(per.values())
+    say(f"[1] paper suite, {n} scenarios per cell, -w 2, empty MILP cache: {wall:.0f} s "
+        f"elapsed (chunk seconds summed over workers: {total:.0f})")
+    by_method: dict[str, float] = {}
+    for (m, _), v in per.items():
+        by_method[m] = by_method.get(m, 0.0) + v
+    for m, v in sorted(by_method.items(), key=lambda kv: -kv[1]):
+        say(f"      {m}: {v:.0f} s ({100 * v / total:.0f}%)")
+    what = "measured" if scale == 1 else f"extrapolated linearly x{scale:g} from {n} per cell"
+    say(f"(1) paper suite -w 2, cold MILP cache: {wall * scale / 60:.1f} min ({what}) "
+        "(goal < 10 min)", summary=True)
+
+
+def figure_per_scenario(cfg: dict) -> None:
+    for setting, n in cfg["per_scenario"].items():
+        sessions = {"greedy": load_session(str(BASELINE_MISSION), [
+                        f"mission.setting='{setting}'", f"mission.scenarios={n}"]),
+                    "ATA-HRL": load_session(str(BUILTIN_MISSION if setting == "a"
+                                                else ATA_HRL_B), [f"mission.scenarios={n}"])}
+        cpu = {}
+        for name, session in sessions.items():
+            chunks = fixed_chunks(scenario_ids(session.mission), RUN_CHUNK)
+            cpu[name] = bench_batches.least_cpu_seconds(session, chunks, cfg["repeats"])
+        say(f"[2] ({setting}) {n} scenarios in batches of <= {RUN_CHUNK}, CPU seconds (least of "
+            f"{cfg['repeats']}): ATA-HRL {cpu['ATA-HRL']:.1f} s, greedy {cpu['greedy']:.1f} s")
+        say(f"(2) ATA-HRL per scenario vs greedy ({setting}): "
+            f"{cpu['ATA-HRL'] / cpu['greedy']:.1f}x (goal <= 2x)", summary=True)
+
+
+def figure_batch_and_memory(cfg: dict, do_batch: bool, do_memory: bool) -> None:
+    """Figures 3 and 5 share the (b) batch-500 run: made in a child process, it gives both its
+    throughput and its peak memory."""
+    for setting in ("a", "b") if do_batch else ("b",):
+        big = bench_memory.isolated(setting, bench_memory.GREEDY_REALLOC, 500, 500)
+        if do_batch:
+            _, single = bench_kernel.measure(setting, bench_memory.GREEDY_REALLOC,
+                                             cfg["single"], 1)
+            say(f"[3] ({setting}) greedy + on_event realloc: batch 1 {single:,.0f} scenario-"
+                f"epochs/s ({cfg['single']} scenarios), batch 500 {big['rate']:,.0f} "
+                f"({big['wall_s']:.1f} s for 500, in a fresh process)")
+            say(f"(3) greedy batch 500 vs 1 ({setting}): {big['rate'] / single:.1f}x "
+                "(goal >= 30x)", summary=True)
+        if do_memory and setting == "b":
+            say(f"(5) peak memory, (b) greedy at batch 500: {big['rss_peak_mib'] / 1024:.2f} "
+                f"GiB resident ({big['rss_base_mib']:.0f} MiB before the run) (goal < 2 GiB)",
+                summary=True)
+    if do_memory:
+        rows = bench_memory.poi_growth(cfg["pois"], cfg["poi_batch"])
+        for r in rows:
+            say(f"[5] team (a) with {r['pois']} POIs, greedy + realloc, batch "
+                f"{cfg['poi_batch']}: traced peak {r['traced_peak_mib']:.1f} MiB, "
+                f"{r['growth_mib']:.1f} MiB over the peak at 10 POIs")
+        law = ", ".join(f"{r['pois']}: {r['exponent']:.2f}" for r in rows[1:])
+        say(f"(5) peak memory growth exponent in POIs (at {law}) (goal: 1, linear)",
+            summary=True)
+
+
+def figure_recipe(cfg: dict) -> None:
+    aux, ita, ctr = cfg["recipe"]
+    rows = bench_training.recipe_estimate(aux, ita, ctr)
+    for part, sec, n, m, est in rows:
+        say(f"[4] {part}: {sec:.1f} s for {n} measured -> {est:.0f} s for the recipe's {m}")
+    total = sum(r[4] for r in rows)
+    say(f"(4) ATA-HRL (a) training recipe: {total / 60:.1f} min (extrapolated from "
+        f"{aux} aux, {ita} ITA, {ctr} CTR steps and their validations) (goal < 15 min)",
+        summary=True)
+
+
+def figure_gym(cfg: dict) -> None:
+    r = bench_gym.vector_vs_single(bench_gym.TEAMS["(a) (H/R/P 6/8/60, T 30)"], 64,
+                                   cfg["gym_rounds"], 0)
+    say(f"[6] (a), 64 envs, {cfg['gym_rounds']} episode(s) each: single {r['single']:.1f} "
+        f"episodes/s ({r['wall_single']:.1f} s), vector {r['vector']:.1f} "
+        f"({r['wall_vector']:.1f} s)")
+    say(f"(6) gym vector env vs 64 single envs (a): {r['ratio']:.1f}x (goal >= 30x)",
+        summary=True)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true",
+                        help="the short version (a few minutes; the suite extrapolated)")
+    parser.add_argument("--only", default="1,2,3,4,5,6", help="figures to measure")
+    args = parser.parse_args()
+    cfg = QUICK if args.quick else FULL
+    only = {int(x) for x in args.only.split(",")}
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                            text=True, cwd=HERE).stdout.strip()
+    say(f"bench_fast {'--quick' if args.quick else '(full)'}, commit {commit}, "
+        f"{time.strftime('%Y-%m-%d %H:%M')}")
+    t0 = time.perf_counter()
+    # the cheap figures first, the suite last: a partial run still says most
+    if 3 in only or 5 in only:
+        figure_batch_and_memory(cfg, 3 in only, 5 in only)
+    if 2 in only:
+        figure_per_scenario(cfg)
+    if 6 in only:
+        figure_gym(cfg)
+    if 4 in only:
+        figure_recipe(cfg)
+    if 1 in only:
+        figure_suite(cfg)
+    print(f"\nsummary ({time.perf_counter() - t0:.0f} s in all):")
+    for line in sorted(SUMMARY):
+        print("  " + line)
+
+
+if __name__ == "__main__":
+    main()
