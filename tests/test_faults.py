@@ -347,3 +347,42 @@ def test_animate_writes_one_frame_per_epoch(cli, small, tmp_path):
     assert np.array_equal(poi_states(ep, ep.horizon_s), ep.outcome)
     for leg in ep.legs:
         assert robot_at(ep, leg.robot, leg.end)[0] == pytest.approx(leg.dest, abs=1e-9)
+
+
+# --- checkpoints: non-finite weights, and no unsafe advice ---------------------------------------
+
+class _NotPlainData:
+    """An object a weights-only load refuses."""
+
+
+def test_a_checkpoint_with_non_finite_weights_is_refused_at_load_naming_the_tensor(tmp_path):
+    import torch
+
+    from ata.training import CheckpointError, read_checkpoint
+    from ata.runtime.inputs import WEIGHTS
+    data = torch.load(WEIGHTS / "ata_hrl_a.pt", map_location="cpu", weights_only=True)
+    name = next(k for k, v in data["model"].items() if v.is_floating_point())
+    data["model"][name] = data["model"][name].clone()
+    data["model"][name].view(-1)[0] = float("nan")
+    torch.save(data, tmp_path / "nan.pt")
+    with pytest.raises(CheckpointError, match=f"non-finite values \\(NaN or inf\\) in "
+                                              f"model.{name}:"):
+        read_checkpoint(tmp_path / "nan.pt")
+    data["model"][name].view(-1)[0] = float("inf")
+    torch.save(data, tmp_path / "inf.pt")
+    with pytest.raises(CheckpointError, match=f"in model.{name}:"):
+        read_checkpoint(tmp_path / "inf.pt")
+    # the shipped file itself loads
+    assert read_checkpoint(WEIGHTS / "ata_hrl_a.pt")["kind"] == data["kind"]
+
+
+def test_a_checkpoint_holding_objects_is_refused_without_the_unsafe_advice(tmp_path):
+    import torch
+
+    from ata.training import CheckpointError, read_checkpoint
+    torch.save({"kind": "ata_hrl", "thing": _NotPlainData()}, tmp_path / "obj.pt")
+    with pytest.raises(CheckpointError) as info:
+        read_checkpoint(tmp_path / "obj.pt")
+    text = str(info.value)
+    assert "holds objects other than tensors and plain data" in text
+    assert "weights_only" not in text

@@ -4,7 +4,7 @@ scenario ranges their training drew from."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 from ata.core.errors import MissionError
 from ata.runtime.heldout import EVAL_FIRST_SCENARIO
@@ -41,12 +41,37 @@ def read_checkpoint(path: str | Path, kind: str | None = None) -> dict[str, Any]
     try:
         data = torch.load(p, map_location="cpu", weights_only=True)
     except Exception as exc:   # empty, truncated, corrupted, or not a torch file at all
+        if "weights only load failed" in str(exc).lower():
+            # PyTorch's message goes on to suggest weights_only=False, which runs the file's
+            # code: never the advice for a file from elsewhere
+            raise CheckpointError(p, "holds objects other than tensors and plain data, which "
+                                     "ata does not load (an ata checkpoint holds only "
+                                     "those)") from None
         first = (str(exc).splitlines() or [""])[0][:200]
         raise CheckpointError(p, f"cannot be read as a checkpoint ({type(exc).__name__}: "
                                  f"{first})") from None
     if not isinstance(data, dict) or "kind" not in data:
         raise CheckpointError(p, "is not an ata checkpoint (it names no method)")
+    bad = next(non_finite(data), None)
+    if bad is not None:
+        raise CheckpointError(p, f"holds non-finite values (NaN or inf) in {bad}: the run "
+                                 "that wrote it diverged; take an earlier checkpoint")
     return of_kind(data, p, kind)
+
+
+def non_finite(data: Any, where: str = "") -> Iterator[str]:
+    """The names of the floating-point tensors in `data` (nested dicts and lists) that hold a
+    NaN or an infinity."""
+    import torch
+    if isinstance(data, torch.Tensor):
+        if data.is_floating_point() and not bool(torch.isfinite(data).all()):
+            yield where or "the checkpoint"
+    elif isinstance(data, dict):
+        for key, value in data.items():
+            yield from non_finite(value, f"{where}.{key}" if where else str(key))
+    elif isinstance(data, (list, tuple)):
+        for i, value in enumerate(data):
+            yield from non_finite(value, f"{where}[{i}]")
 
 
 def of_kind(data: dict[str, Any], path: str | Path, kind: str | None) -> dict[str, Any]:
