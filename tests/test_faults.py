@@ -386,3 +386,14 @@ def test_a_checkpoint_holding_objects_is_refused_without_the_unsafe_advice(tmp_p
     text = str(info.value)
     assert "holds objects other than tensors and plain data" in text
     assert "weights_only" not in text
+
+
+def test_a_file_that_is_no_checkpoint_is_refused_without_the_unsafe_advice(tmp_path):
+    from ata.training import CheckpointError, read_checkpoint
+    (tmp_path / "bad.pt").write_bytes(b"not a checkpoint")
+    with pytest.raises(CheckpointError) as info:
+        read_checkpoint(tmp_path / "bad.pt")
+    text = str(info.value)
+    assert "cannot be read as a checkpoint (UnpicklingError: not a file of tensors and plain " \
+           "data: Unsupported operand 110)" in text
+    assert "weights_only" not in text

@@ -41,13 +41,17 @@ def read_checkpoint(path: str | Path, kind: str | None = None) -> dict[str, Any]
     try:
         data = torch.load(p, map_location="cpu", weights_only=True)
     except Exception as exc:   # empty, truncated, corrupted, or not a torch file at all
-        if "weights only load failed" in str(exc).lower():
-            # PyTorch's message goes on to suggest weights_only=False, which runs the file's
-            # code: never the advice for a file from elsewhere
-            raise CheckpointError(p, "holds objects other than tensors and plain data, which "
-                                     "ata does not load (an ata checkpoint holds only "
-                                     "those)") from None
-        first = (str(exc).splitlines() or [""])[0][:200]
+        text = str(exc)
+        if "weights only load failed" in text.lower():
+            # PyTorch's message suggests weights_only=False, which runs the file's code: never
+            # the advice for a file from elsewhere. Keep its diagnosis alone.
+            if "unsupported global" in text.lower():
+                raise CheckpointError(p, "holds objects other than tensors and plain data, "
+                                         "which ata does not load (an ata checkpoint holds "
+                                         "only those)") from None
+            cause = text.split("WeightsUnpickler error:", 1)[-1].strip().splitlines()
+            text = f"not a file of tensors and plain data: {cause[0] if cause else '?'}"
+        first = (text.splitlines() or [""])[0][:200]
         raise CheckpointError(p, f"cannot be read as a checkpoint ({type(exc).__name__}: "
                                  f"{first})") from None
     if not isinstance(data, dict) or "kind" not in data:
