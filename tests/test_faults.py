@@ -397,3 +397,15 @@ def test_a_file_that_is_no_checkpoint_is_refused_without_the_unsafe_advice(tmp_p
     assert "cannot be read as a checkpoint (UnpicklingError: not a file of tensors and plain " \
            "data: Unsupported operand 110)" in text
     assert "weights_only" not in text
+
+
+def test_an_aux_checkpoint_whose_aux_part_was_never_trained_is_refused(tmp_path):
+    from ata.plugins.ata_hrl.components import AuxReconstructor
+    from ata.training import CheckpointError
+    with pytest.raises(CheckpointError, match="ata_hrl_wo_aux_a.pt: checkpoint: trained no aux "
+                                              "module \\(the aux reconstructor needs one that "
+                                              "did"):
+        AuxReconstructor(AuxReconstructor.Settings(checkpoint="builtin:ata_hrl_wo_aux_a"), None)
+    # the full method's file trained it: accepted
+    aux = AuxReconstructor(AuxReconstructor.Settings(checkpoint="builtin:ata_hrl_a"), None)
+    assert aux.from_checkpoint

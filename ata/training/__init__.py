@@ -30,10 +30,10 @@ for every trainer (both built-in ones use it).
 
 from ata.runtime.inputs import WEIGHTS, file_digest, resolve
 from ata.training.checkpoints import (TRAINING_ID_LIMIT, VALIDATION_SEED_OFFSET, CheckpointError,
-                                      load_cached, read_checkpoint, trained_on)
+                                      load_cached, read_checkpoint, trained_on, trained_parts)
 from ata.training.loop import Phase, PhaseLoop
 from ata.training.run import TrainRun
 
 __all__ = ["TRAINING_ID_LIMIT", "VALIDATION_SEED_OFFSET", "WEIGHTS", "CheckpointError", "Phase",
            "PhaseLoop", "TrainRun", "file_digest", "load_cached", "read_checkpoint", "resolve",
-           "trained_on"]
+           "trained_on", "trained_parts"]

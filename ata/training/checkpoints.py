@@ -108,4 +108,14 @@ def trained_on(spec: str, kind: str) -> list[tuple[int, int, int]]:
     if stat is None or key not in _CACHE:
         data = read_checkpoint(path, kind)
         _CACHE[key] = [tuple(int(x) for x in r) for r in data.get("scenario_ranges", [])]
+        _CACHE[("parts",) + key[1:]] = [str(part) for part in data.get("trained", [])]
     return list(_CACHE[key])
+
+
+def trained_parts(spec: str, kind: str) -> list[str]:
+    """The parts (networks) a checkpoint's training trained, as its trainer recorded them
+    (its ``trained`` entry): a component that needs a trained part refuses a file without it."""
+    trained_on(spec, kind)
+    path = resolve(spec)
+    stat = path.stat()
+    return list(_CACHE[("parts", kind, str(path.resolve()), (stat.st_mtime_ns, stat.st_size))])

@@ -10,7 +10,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ata.training import CheckpointError, load_cached, read_checkpoint, trained_on
+from ata.training import (CheckpointError, load_cached, read_checkpoint, resolve, trained_on,
+                          trained_parts)
 
 KIND = "ata_hrl"
 """The ``kind`` an ATA-HRL checkpoint carries."""
@@ -61,3 +62,11 @@ def load_net(spec: str):
 def trained_ranges(spec: str) -> list[tuple[int, int, int]]:
     """The scenario ranges the checkpoint's training used."""
     return trained_on(spec, KIND)
+
+
+def require_trained(spec: str, part: str, who: str) -> None:
+    """Refuse a checkpoint whose training never trained `part` (``aux``: w/o.AUX's files carry
+    an untrained reconstruction module, which would run silently on its initial weights)."""
+    if part not in trained_parts(spec, KIND):
+        raise CheckpointError(resolve(spec), f"trained no {part} module ({who} needs one that "
+                                             "did; an ablation's file without it does not)")

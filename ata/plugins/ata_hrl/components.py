@@ -21,7 +21,7 @@ from ata import hookimpl
 from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext, Observation, SimState
 from ata.plugins.ata_hrl import decode as D
-from ata.plugins.ata_hrl.checkpoint import load_net, trained_ranges
+from ata.plugins.ata_hrl.checkpoint import load_net, require_trained, trained_ranges
 from ata.plugins.ata_hrl.decoder import DecodeSettings, Decoder
 from ata.plugins.ata_hrl.features import (GROUPS, inherent_features, seen_state, state_features,
                                           to_tensors)
@@ -359,6 +359,8 @@ class AuxReconstructor:
                  net: ATAHRLNet | None = None, guess: bool = True):
         self.settings = settings if settings is not None else self.Settings()
         self.from_checkpoint = net is None       # a trainer's live network reports nothing
+        if self.from_checkpoint:
+            require_trained(self.settings.checkpoint, "aux", "the aux reconstructor")
         self.net = net if net is not None else load_net(self.settings.checkpoint)
         self.hidden: dict[str, torch.Tensor | None] = {"robots": None, "tasks": None}
         self.tracker = StatusTracker()
