@@ -342,7 +342,8 @@ def train(mission: Optional[str] = typer.Argument(
     """Train the learned components of a mission with the trainer it names (ata_hrl: ATA-HRL
     and its ablations; tr_pomdp: the TR-POMDP agents, also after the attention ITA for AtRL-TR)."""
     from ata.experiment import runner
-    from ata.experiment.execute import Interrupted, prepare_out_dir
+    from ata.experiment.execute import Interrupted
+    from ata.experiment.folders import prepare_out_dir
     from ata.training import TrainRun
 
     if resume is not None:

@@ -22,8 +22,7 @@ from ata.core.errors import MissionError
 from ata.core.mission import Mission
 from ata.core.registry import Register
 from ata.experiment import runlog
-from ata.experiment.folders import (  # noqa: F401  (the run path's folders, re-exported)
-    cannot_write, new_folder, prepare_out_dir, runs_root, stamped_folder)
+from ata.experiment.folders import cannot_write, prepare_out_dir
 from ata.experiment.units import make_units, run_units
 from ata.runtime import memory
 from ata.runtime.executors import make_executor

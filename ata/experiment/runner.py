@@ -22,7 +22,8 @@ from ata.core.kernel import Simulation
 from ata.core.mission import Mission
 from ata.core.registry import Register, collect_components, get_plugin_manager, providers
 from ata.experiment import runlog
-from ata.experiment.execute import Done, Plan, stamped_folder
+from ata.experiment.execute import Done, Plan
+from ata.experiment.folders import stamped_folder
 from ata.experiment.units import (RUN_CHUNK, chunks_of, fixed_chunks, make_units, run_units,
                                   scenario_ids)
 from ata.runtime import memory
