@@ -282,7 +282,7 @@ def test_the_skill_speed_error_names_the_file(cli, small):
 
 def test_the_planner_estimate():
     assert greedy_planner.peak_bytes(10, 6, 8, 10_000) == 8 * 10 * (
-        5 * 10_000 ** 2 + 16 * 14 * 10_000 + 64 * 10_000)
+        16 * 14 * 10_000 + 64 * 10_000)
 
 
 def test_a_batch_too_big_for_memory_is_cut_smaller(cli, small, whole, tmp_path, monkeypatch):

@@ -119,16 +119,12 @@ class GreedyPlanner:
         return out
 
 
-PAIRWISE_ARRAYS = 5
-"""How many (batch, POIs, POIs) float64 arrays `plan` holds at once at its peak: the POI-to-POI
-gaps in x and y, their squares and the distances (about 4 measured with 500 and 1000 POIs)."""
-
-
 def peak_bytes(batch: int, humans: int, robots: int, tasks: int) -> int:
     """An estimate of the planner's peak working memory for a batch of `batch` scenarios, in
-    bytes: its (batch, POIs, POIs) arrays dominate, its (batch, robots or humans, POIs) ones
-    come next. A planner that builds fewer of them lowers this estimate here."""
-    per_scenario = PAIRWISE_ARRAYS * tasks * tasks + 16 * (robots + humans) * tasks + 64 * tasks
+    bytes: linear in the POIs, its (batch, robots or humans, POIs) arrays dominate (those of
+    `ata.model.plan.project` included), its (batch, POIs) ones come next. Measured with
+    tracemalloc on the (a) team at 1040 POIs: about 1 KB per scenario and POI, under this."""
+    per_scenario = 16 * (robots + humans) * tasks + 64 * tasks
     return 8 * batch * per_scenario
 
 
@@ -205,15 +201,9 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
     kind3 = kind * 3
     points12 = np.tile(tables.POINTS, 4)
     tx, ty = t_xy[..., 0] * area, t_xy[..., 1] * area
-    # distances once: task to task (B, P, P), and robot start to task (B, R, P); in the loop a
-    # robot is either where it started or at the last task it was given
-    gap_x, gap_y = tx[:, :, None] - tx[:, None, :], ty[:, :, None] - ty[:, None, :]
-    task_dist = np.sqrt(gap_x * gap_x + gap_y * gap_y)
-    del gap_x, gap_y
+    # distances on demand, one (B, P) row a step: from the chosen robot's start, or from the
+    # last task it was given (no (B, P, P) array, so memory stays linear in P)
     rx, ry = robot_xy[..., 0] * area, robot_xy[..., 1] * area
-    start_x, start_y = tx[:, None, :] - rx[:, :, None], ty[:, None, :] - ry[:, :, None]
-    start_dist = np.sqrt(start_x * start_x + start_y * start_y)
-    del start_x, start_y
     at_task = np.full((B, R), -1, dtype=np.int64)
     if S is not None and committed.any():
         at_task[cb, cr] = target[cb, cr]
@@ -221,8 +211,6 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
         robot_free = after["robot_free"].copy()
         human_free = after["human_free"].copy()
         rx, ry = after["robot_xy"][..., 0], after["robot_xy"][..., 1]
-        start_x, start_y = tx[:, None, :] - rx[:, :, None], ty[:, None, :] - ry[:, :, None]
-        start_dist = np.sqrt(start_x * start_x + start_y * start_y)
         at_task[:] = -1
 
     # per (robot type, navigator class auto / high skill): each task's (quality, difficulty)
@@ -242,9 +230,15 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
         rs = robot_free.argmin(axis=1)
         t_free = robot_free[b_all, rs]
         at = at_task[b_all, rs]
-        dist = task_dist[b_all, np.maximum(at, 0)]                              # (B, P)
+        at0 = np.maximum(at, 0)
+        gap_x = tx[b_all, at0][:, None] - tx
+        gap_y = ty[b_all, at0][:, None] - ty
+        dist = np.sqrt(gap_x * gap_x + gap_y * gap_y)                          # (B, P)
         if (at < 0).any():
-            dist = np.where((at < 0)[:, None], start_dist[b_all, rs], dist)
+            start_x = tx - rx[b_all, rs][:, None]
+            start_y = ty - ry[b_all, rs][:, None]
+            dist = np.where((at < 0)[:, None],
+                            np.sqrt(start_x * start_x + start_y * start_y), dist)
         v = np.maximum(speed[b_all, rs], 1e-9)[:, None]
         combo0 = r_type[b_all, rs] * 2
 

@@ -180,22 +180,36 @@ def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None
     left &= np.isfinite(np.take_along_axis(robot_free, owner, axis=1))
     b_all = np.arange(B)
     R = robot_free.shape[1]
+    # each robot's POIs in POI order, padded with -1: (B, R, K), K the most any robot owns; a
+    # step measures the chosen robot's distance to its own POIs only, and argmin keeps POI
+    # order, so ties go to the same POI as over all P
+    order = np.argsort(owner, axis=1, kind="stable")
+    owned = np.zeros((B, R), dtype=np.int64)
+    np.add.at(owned, (np.repeat(b_all, P), owner.ravel()), 1)
+    K = int(owned.max()) if owned.size else 0
+    first = np.cumsum(owned, axis=1) - owned                               # (B, R)
+    slot = np.arange(P)[None, :] - first[b_all[:, None], np.take_along_axis(owner, order, 1)]
+    mine_idx = np.full((B, R, max(K, 1)), -1, dtype=np.int64)
+    mine_idx[b_all[:, None], np.take_along_axis(owner, order, 1), slot] = order
+    # POIs left per robot, kept up to date instead of scanning `left` every step
+    count = np.zeros((B, R), dtype=np.int64)
+    lb, lp = np.nonzero(left)
+    np.add.at(count, (lb, owner[lb, lp]), 1)
     for _ in range(P):
-        # robots with POIs left: (B, R)
-        has = np.zeros((B, R), dtype=bool)
-        lb, lp = np.nonzero(left)
-        has[lb, owner[lb, lp]] = True
+        has = count > 0
         if not has.any():
             break
         free = np.where(has, robot_free, np.inf)
         rs = free.argmin(axis=1)
         act = has.any(axis=1)
-        gap = start.task_xy - robot_xy[b_all, rs][:, None, :]
-        dist = np.hypot(gap[..., 0], gap[..., 1])
-        mine = left & (owner == rs[:, None])
-        dist = np.where(mine, dist, np.inf)
-        p = dist.argmin(axis=1)
-        b, rr, p, d = b_all[act], rs[act], p[act], dist[b_all, p][act]
+        b, rr = b_all[act], rs[act]
+        cand = mine_idx[b, rr]                                              # (A, K)
+        valid = (cand >= 0) & left[b[:, None], np.maximum(cand, 0)]
+        gap = start.task_xy[b[:, None], np.maximum(cand, 0)] - robot_xy[b, rr][:, None, :]
+        dist = np.where(valid, np.hypot(gap[..., 0], gap[..., 1]), np.inf)
+        k = dist.argmin(axis=1)
+        a_all = np.arange(b.size)
+        p, d = cand[a_all, k], dist[a_all, k]
         nav = alloc.navigator[b, p]
         navigated = nav >= 0
         nav_h = np.maximum(nav, 0)
@@ -233,8 +247,10 @@ def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None
         robot_free[b, rr] = np.where(in_time, arr, np.inf)
         robot_xy[b, rr] = start.task_xy[b, p]
         left[b, p] = False
+        count[b, rr] -= 1
         # a robot whose next leg overruns the horizon is done
         left[b[~in_time]] &= owner[b[~in_time]] != rr[~in_time, None]
+        count[b[~in_time], rr[~in_time]] = 0
     return Projection(value=expected.sum(axis=1), human_busy_s=busy.sum(axis=1),
                       expected=expected, arrival=arrival, finish=finish,
                       robot_free=robot_free, robot_xy=robot_xy, human_free=human_free)
