@@ -35,13 +35,21 @@ class HumanLoad:
         self.edges = np.arange(0.0, start.horizon + window_s + BIN_S, BIN_S)
         ramp = np.clip(self.edges - (start.now - window_s), 0.0, window_s)
         self.cum = self.util_now[..., None] * ramp
+        # constant over the plan, and what changes only when work is booked (the fatigue
+        # projections, read at every candidate of every step), computed once in between
+        self._eta_lam = (start.eta * start.lam)[:, None, :]
+        self._fatigue: np.ndarray | None = None
+        self._fatigue_greedy: np.ndarray | None = None
 
     def fatigue_at(self) -> np.ndarray:
         """Projected F_f of every human (E, H) after the work booked so far: the estimate now,
         moved by the model's change over the booked hours."""
-        floor, hours0 = self.start.fatigue_floor, self.start.hours
-        rise = tables.fatigue(hours0 + self.booked / 3600.0, floor) - tables.fatigue(hours0, floor)
-        return np.clip(self.fatigue_now + rise, floor, 1.0)
+        if self._fatigue is None:
+            floor, hours0 = self.start.fatigue_floor, self.start.hours
+            rise = (tables.fatigue(hours0 + self.booked / 3600.0, floor)
+                    - tables.fatigue(hours0, floor))
+            self._fatigue = np.clip(self.fatigue_now + rise, floor, 1.0)
+        return self._fatigue
 
     def _cum_at(self, t: np.ndarray) -> np.ndarray:
         """Cumulative busy seconds of every human by times t (E, N, H) (linear within a bin)."""
@@ -73,15 +81,18 @@ class HumanLoad:
         finish = begin + tables.T_BAR[q, d][..., None]
         f_d = tables.F_D[q, d][..., None]
         if greedy:
-            f_f = tables.fatigue(start.hours + np.maximum(self.free - start.now, 0) / 3600.0,
-                                 start.fatigue_floor)[:, None, :]
+            if self._fatigue_greedy is None:
+                self._fatigue_greedy = tables.fatigue(
+                    start.hours + np.maximum(self.free - start.now, 0) / 3600.0,
+                    start.fatigue_floor)[:, None, :]
+            f_f = self._fatigue_greedy
             f_w = u = None
-            p = 0.5 + (start.eta * start.lam)[:, None, :] * f_f * f_d
+            p = 0.5 + self._eta_lam * f_f * f_d
         else:
             f_f = self.fatigue_at()[:, None, :]
             u = self.utilisation_at(begin)
             f_w = tables.workload(u)
-            p = 0.5 + (start.eta * start.lam)[:, None, :] * f_f * f_w * f_d
+            p = 0.5 + self._eta_lam * f_f * f_w * f_d
         return p, finish, begin, u, f_w, f_f
 
     def book(self, e: np.ndarray, h: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
@@ -89,3 +100,4 @@ class HumanLoad:
         self.cum[e, h] += np.clip(self.edges[None, :] - a[:, None], 0.0, (b - a)[:, None])
         self.booked[e, h] += b - a
         self.free[e, h] = np.maximum(self.free[e, h], b)
+        self._fatigue = self._fatigue_greedy = None

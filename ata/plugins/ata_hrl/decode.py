@@ -76,16 +76,22 @@ class DecodeTrace:
         return {k: np.stack(v) for k, v in self.steps[kind].items()}
 
 
+def _finite(x: np.ndarray, **fill) -> np.ndarray:
+    """`x` with nan and inf replaced (np.nan_to_num), without the copy when all is finite."""
+    return x if np.isfinite(x).all() else np.nan_to_num(x, **fill)
+
+
 def _clean(inp: StepInputs) -> StepInputs:
     """Finite inputs: episodes whose decoding is over carry dummy choices (a robot that is
     down, say), whose features may be inf - inf; their decisions are masked out anyway."""
-    return StepInputs(np.nan_to_num(inp.features, nan=0.0, posinf=10.0, neginf=-10.0),
-                      inp.mask, np.nan_to_num(inp.prior, nan=-1.0, posinf=1e3, neginf=-1e3),
+    return StepInputs(_finite(inp.features, nan=0.0, posinf=10.0, neginf=-10.0),
+                      inp.mask, _finite(inp.prior, nan=-1.0, posinf=1e3, neginf=-1e3),
                       inp.active)
 
 
 def _tensors(inp: StepInputs, mask: np.ndarray) -> tuple[torch.Tensor, ...]:
-    return (torch.from_numpy(inp.features), torch.as_tensor(inp.prior, dtype=torch.float32),
+    # the float32 cast in numpy rounds as torch's would: the same tensor, one torch call less
+    return (torch.from_numpy(inp.features), torch.from_numpy(inp.prior.astype(np.float32)),
             torch.from_numpy(mask))
 
 
@@ -93,22 +99,32 @@ def decode(dec: Decoder, net: AllocationNet, emb: dict[str, torch.Tensor], choos
            *, residual: bool = True, trace: DecodeTrace | None = None) -> Allocation:
     """Decode every POI left in `dec` with the network's scorers (no gradient)."""
     E = dec.E
-    cands = {k: net.candidates(k, emb) for k in KINDS}
+    zeros = np.zeros(E, np.int64)
+    rows = torch.arange(E)
+    # inference mode: nothing decoded here is differentiated (a trainer recomputes the log-
+    # probabilities from the trace), and torch skips its autograd bookkeeping per call
+    with torch.inference_mode():
+        cands = {k: net.candidates(k, emb) for k in KINDS}
+        # the candidates are the same at every step: their projection once per decode
+        cand_hidden = {k: net.scorers[k].cand(cands[k]) if residual else None for k in KINDS}
+        tokens = {g: emb[g] for g in ("tasks", "robots")}
 
-    def pick(kind: str, inp: StepInputs, mask: np.ndarray, active: np.ndarray, robot, task):
-        inp = _clean(inp)
-        feats, prior, m = _tensors(inp, mask)
-        idx = {"robot": torch.as_tensor(robot if robot is not None else np.zeros(E, np.int64)),
-               "task": torch.as_tensor(task if task is not None else np.zeros(E, np.int64))}
-        ctx = step_context(kind, emb, idx)
-        n = m.shape[1]
-        logits = net.scorers[kind](feats, cands[kind][:, :n], ctx, prior, m, residual)
-        choice = choose(kind, logits)
-        if trace is not None:
-            trace.add(kind, inp, mask, choice, active, robot, task)
-        return choice
+        def pick(kind: str, inp: StepInputs, mask: np.ndarray, active: np.ndarray, robot, task):
+            inp = _clean(inp)
+            feats, prior, m = _tensors(inp, mask)
+            r = torch.from_numpy(robot if robot is not None else zeros)
+            t = torch.from_numpy(task if task is not None else zeros)
+            ctx = _context(kind, tokens, rows, r, t)
+            n = m.shape[1]
+            cand, hid = cands[kind], cand_hidden[kind]
+            if n != cand.shape[1]:
+                cand, hid = cand[:, :n], None
+            logits = net.scorers[kind](feats, cand, ctx, prior, m, residual, cand_hidden=hid)
+            choice = choose(kind, logits)
+            if trace is not None:
+                trace.add(kind, inp, mask, choice, active, robot, task)
+            return choice
 
-    with torch.no_grad():
         while True:
             pi = dec.poi_inputs()
             active = pi.active
@@ -125,6 +141,17 @@ def decode(dec: Decoder, net: AllocationNet, emb: dict[str, torch.Tensor], choos
     return dec.finish()
 
 
+def _context(kind: str, tokens: dict[str, torch.Tensor], rows: torch.Tensor, robot: torch.Tensor,
+             task: torch.Tensor) -> torch.Tensor:
+    """`network.step_context` for one step's (E,) indices, without its reshapes (indices are
+    never negative here)."""
+    if kind == "poi":
+        return tokens["robots"][rows, robot]
+    if kind == "robot":
+        return tokens["tasks"][rows, task]
+    return tokens["tasks"][rows, task] + tokens["robots"][rows, robot]
+
+
 DECODE, KEEP, HEURISTIC = 0, 1, 2
 """pi_TR's first step, per POI: decode it again, keep its triple, take greedy's."""
 
@@ -135,7 +162,7 @@ def decide_keep(inputs: StepInputs, net: AllocationNet, emb: dict[str, torch.Ten
     """pi_TR's first step: (E, P) DECODE, KEEP or HEURISTIC per POI (-1 where nothing is
     decided)."""
     inputs = _clean(inputs)
-    with torch.no_grad():
+    with torch.inference_mode():
         logits = net.keep(torch.from_numpy(inputs.features), emb["tasks"],
                           torch.as_tensor(inputs.prior, dtype=torch.float32),
                           torch.from_numpy(inputs.mask), residual)

@@ -118,6 +118,10 @@ class Decoder:
         self.tx, self.ty = start.task_xy[..., 0], start.task_xy[..., 1]
         self.prev_valid = np.zeros((E, P), bool) if previous is None else \
             np.isfinite(np.take_along_axis(start.robot_free, previous.robot, axis=1))
+        # every robot's expected points at every POI, onboard and autonomous (E, R, P)
+        q_all = tables.QUALITY[start.robot_type[..., None], start.kind[:, None, :], 1]
+        self._ev_onboard = tables.expected_points(self.points[:, None, :],
+                                                  tables.P_RC[q_all, start.diff[:, None, :]])
 
     def replay(self, kept: np.ndarray, alloc: Allocation | None = None) -> None:
         """Book the POIs in `kept` (E, P) with their triples in `alloc` (default: the previous
@@ -266,10 +270,7 @@ class Decoder:
         others = reach.copy()
         others[e, r_ff] = False
         other_arr = np.where(others, arr, np.inf).min(axis=1)
-        q_all = tables.QUALITY[self.start.robot_type[..., None], self.start.kind[:, None, :], 1]
-        ev_all = np.where(others, tables.expected_points(self.points[:, None, :],
-                                                         tables.P_RC[q_all, d[:, None, :]]),
-                          -35.0).max(axis=1)
+        ev_all = np.where(others, self._ev_onboard, -35.0).max(axis=1)
         hz = self.horizon
         left_share = self.left.sum(1, keepdims=True) / max(P, 1)
         prev_feats = np.zeros((E, P, 3))

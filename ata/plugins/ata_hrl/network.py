@@ -103,11 +103,15 @@ class StepScorer(nn.Module):
         self.log_scale = nn.Parameter(torch.tensor(math.log(PRIOR_SCALE[kind])))
 
     def forward(self, feats: torch.Tensor, cand: torch.Tensor, ctx: torch.Tensor,
-                prior: torch.Tensor, mask: torch.Tensor, residual: bool = True) -> torch.Tensor:
-        """feats (..., N, F), cand (..., N, d), ctx (..., d), prior and mask (..., N)."""
+                prior: torch.Tensor, mask: torch.Tensor, residual: bool = True,
+                cand_hidden: torch.Tensor | None = None) -> torch.Tensor:
+        """feats (..., N, F), cand (..., N, d), ctx (..., d), prior and mask (..., N).
+        `cand_hidden`: ``self.cand(cand)`` computed once by a caller that scores the same
+        candidates step after step (the decoder), the same tensor, so the same logits."""
         logit = self.log_scale.exp() * prior
         if residual:
-            hid = self.feat(feats) + self.cand(cand) + self.ctx(ctx)[..., None, :]
+            hid = (self.feat(feats) + (self.cand(cand) if cand_hidden is None else cand_hidden)
+                   + self.ctx(ctx)[..., None, :])
             logit = logit + self.out(hid)[..., 0] + self.linear(feats)[..., 0]
         return logit.masked_fill(~mask, NEG)
 
