@@ -26,7 +26,6 @@ DECISION_KINDS = frozenset({"policy", "condition", "reconstructor"})
 """The decision-makers' kinds: built from the mission without its seed (`Mission.public`),
 they see the world through their DecisionContext (a reconstructor through a DecisionView)."""
 DECISION_SLOTS = ("reconstructors", "initial", "condition", "reallocation")
-MODEL_SLOTS = ("task_model", "human_model", "robot_model")
 WORLD_HOOKS = ("ata_setup", "ata_inherent", "ata_observe", "ata_inject",
                "ata_allocation_changed", "ata_advance", "ata_epoch_end")
 """The phase hooks that receive the world (``sim``) before the episode ends: a
