@@ -5,6 +5,8 @@ and the policies alike (a policy never imports a team model or another policy to
   workload, P_hc, working time, utilisation, SA), and the codes of kinds, difficulties, qualities.
 * `ata.model.team`: MODEL.md's default constants, and the typed constants a team model publishes
   for the policies (`HumanConstants`, `RobotConstants`).
+* `ata.model.fatigue`: individual fatigue (revision 3) and the `FatigueBelief` a planner
+  projects it with.
 * `ata.model.plan`: plans in expectation: where a plan starts from at a decision epoch
   (`plan_start`) and what a fixed allocation is expected to earn from there (`project`).
 * `ata.model.load`: the humans' projected load (fatigue, utilisation) while a plan is built step

@@ -16,6 +16,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
+from ata.model.fatigue import FATIGUE_SPREAD
+
 FATIGUE_FLOOR = 0.4
 """The lowest F_f (section 5, [default])."""
 WINDOW_S = 300.0
@@ -43,6 +45,9 @@ class HumanConstants:
     published_by: ClassVar[str] = "the human model (slot human_model)"
 
     fatigue_floor: float = FATIGUE_FLOOR
+    fatigue_spread: float = FATIGUE_SPREAD
+    """Spread s of the hidden individual onsets and slopes (`ata.model.fatigue`): the prior
+    is public, each human's draw is not."""
     window_s: float = WINDOW_S
     sa_drop: float = SA_DROP
     sa_recovery_per_min: float = SA_RECOVERY_PER_MIN
