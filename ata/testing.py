@@ -15,6 +15,10 @@ failure raises ``AssertionError`` with what broke.
 A policy fills the slots whose hooks it implements: with ``ata_initial_allocation`` the initial
 slot (else ``greedy`` does); with ``ata_reallocate`` the reallocation slot, called at every
 epoch (else ``keep`` fills it and the condition is ``never``). See docs/plugins.md.
+
+A reference reconstructor (``reference = True``: the kernel hands it the true state) is no
+method and fails the integrity check by design: `check_component` refuses it unless told
+``reference=True``, and then runs every check but that one.
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ import numpy as np
 
 from ata import hookimpl
 from ata.core.errors import ContractError
-from ata.core.kernel import DECISION_KINDS, Simulation
+from ata.core.kernel import DECISION_KINDS, Simulation, is_reference
 from ata.core.mission import SLOTS, ComponentSlots, Mission, validate
 from ata.core.registry import collect_components, get_plugin_manager
 from ata.core.state import Allocation, DecisionContext
@@ -206,20 +210,31 @@ def _integrity(kind: str, name: str, base: Trace, mission: Mission, registry: An
 
 
 def check_component(kind: str, factory: Callable[..., Any], *, name: str = "under_test",
-                    settings: dict | None = None, mission: dict | None = None) -> None:
+                    settings: dict | None = None, mission: dict | None = None,
+                    reference: bool = False) -> None:
     """Run the contract checks on one component factory; raise AssertionError on a breach.
 
     :param kind: one of ``ata.core.registry.KINDS``.
     :param settings: the component's settings table, as it would stand in a mission file.
     :param mission: extra ``[mission]`` keys for the small test mission.
+    :param reference: the factory is a reference reconstructor (``reference = True``, it reads
+        the true state): say so to run every check but the integrity check, which a reference
+        fails by design. Without it, a reference is refused.
     """
+    if is_reference(factory) != reference:
+        raise AssertionError(
+            f"{kind} {name!r} is a reference: it reads the true state, so it is no method and "
+            "the integrity check does not apply; check the rest of its contract with "
+            "check_component(..., reference=True)" if reference is False else
+            f"{kind} {name!r} is not a reference (its class does not declare reference = "
+            "True): check it as a method, without reference=True")
     m, registry = _mission(kind, name, factory, settings, mission)
     ids = list(range(m.settings.scenarios))
     try:
         base = _run(m, registry, ids)
         again = _run(m, registry, ids)
         alone = _run(m, registry, ids[-1:])
-        if kind in DECISION_KINDS:
+        if kind in DECISION_KINDS and not reference:
             _integrity(kind, name, base, m, registry, ids)
     except ContractError as exc:   # the kernel's contract checks
         raise AssertionError(f"{kind} {name!r} broke the kernel's contract: {exc}") from exc

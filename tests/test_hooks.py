@@ -22,7 +22,7 @@ from ata.core.mission import validate
 from ata.core.registry import Register, collect_components, get_plugin_manager
 from ata.experiment.runner import Session, run_mission
 from ata.core.state import Allocation
-from ata.model import tables
+from ata.model import fatigue
 
 SMALL = {"setting": "custom", "humans": 2, "robots": 2, "tasks": 6, "uncertainty": "none",
          "horizon_s": 120.0, "epoch_s": 60.0, "tick_s": 30.0}
@@ -237,9 +237,10 @@ def test_ata_inject_runs_in_listed_order_on_a_copy(order, expected):
     sim.step_epoch()
     ctx = sim.last_context
     assert np.all(ctx.observed["humans"].col("fatigue") == expected)
-    # the truth is untouched: F_f of the initial working hours
-    hours = sim.sim.groups["humans"].t0_h
-    assert np.array_equal(sim.last_truth["humans"].col("fatigue"), tables.fatigue(hours))
+    # the truth is untouched: F_f of the initial working hours, on each human's own curve
+    h = sim.sim.groups["humans"]
+    assert np.array_equal(sim.last_truth["humans"].col("fatigue"),
+                          fatigue.individual(h.t0_h, h.fatigue_onset, h.fatigue_slope, 0.4))
 
 
 def test_ata_reconstruct_outputs_reach_the_policies():

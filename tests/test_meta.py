@@ -37,7 +37,7 @@ def test_the_hooks_are_the_documented_set():
     # a hook added or removed must be added to or removed from this list, and documented
     assert HOOKS == sorted([
         "ata_register_components", "ata_setup", "ata_inherent", "ata_observe", "ata_inject",
-        "ata_reconstruct", "ata_initial_allocation", "ata_should_reallocate", "ata_reallocate",
+        "ata_reconstruct", "ata_reconstruct_reference", "ata_initial_allocation", "ata_should_reallocate", "ata_reallocate",
         "ata_allocation_changed", "ata_trained_on", "ata_advance",
         "ata_epoch_end", "ata_episode_end"])
 
@@ -157,6 +157,16 @@ class Deciders(Counter):
         return ctx.previous
 
 
+class Reference(Counter):
+    """A reference reconstructor (the only kind of component the kernel hands the truth)."""
+
+    reference = True
+
+    @hookimpl
+    def ata_reconstruct_reference(self, sim, truth, obs, inherent, out):
+        self._count("ata_reconstruct_reference")
+
+
 def test_the_kernel_calls_every_phase_hook_as_often_as_it_says():
     from ata.core.kernel import Simulation
     from ata.experiment.runner import BASELINE_MISSION, load_session
@@ -165,17 +175,18 @@ def test_the_kernel_calls_every_phase_hook_as_often_as_it_says():
         "mission.setting='custom'", "mission.humans=2", "mission.robots=2", "mission.tasks=6",
         "mission.horizon_s=600.0", "mission.scenarios=2", "mission.batch_size=2"])
     clock = session.mission.clock
-    spy, deciders = Spy(), Deciders()
+    spy, deciders, reference = Spy(), Deciders(), Reference()
     overrides = {"injectors": spy, "initial": deciders, "condition": deciders,
-                 "reallocation": deciders}
+                 "reallocation": deciders, "reconstructors": reference}
     Simulation(session.mission, session.registry, [0, 1], overrides=overrides).run()
     T, ticks = clock.n_epochs, clock.n_ticks
     assert spy.calls == {"ata_setup": 1, "ata_inherent": 1, "ata_observe": T, "ata_inject": T,
                          "ata_reconstruct": T, "ata_advance": ticks, "ata_epoch_end": T,
                          "ata_episode_end": 1, "ata_allocation_changed": 1}
+    assert reference.calls == {"ata_reconstruct_reference": T}
     assert deciders.calls["ata_initial_allocation"] == 1
     assert deciders.calls["ata_should_reallocate"] == T - 1      # every epoch after the first
     assert deciders.calls["ata_reallocate"] == len(range(2, T, 2))   # when it said yes
     # the start-up hook and ata_trained_on (asked by `ata eval`) are tested where they are used
-    assert set(spy.calls) | set(deciders.calls) == set(HOOKS) - {
+    assert set(spy.calls) | set(deciders.calls) | set(reference.calls) == set(HOOKS) - {
         "ata_register_components", "ata_trained_on"}

@@ -96,6 +96,23 @@ def ata_reconstruct(sim: "DecisionView", obs: "Observation", inherent: "Observat
     """
 
 
+@hookspec
+def ata_reconstruct_reference(sim: "DecisionView", truth: "Observation", obs: "Observation",
+                              inherent: "Observation", out: dict[str, np.ndarray]) -> None:
+    """Hand the policies what the true state says: a reference reconstructor's phase.
+
+    A yardstick, never a method: the kernel calls it after ``ata_reconstruct``, only on a
+    component of the ``reconstructors`` slot whose class declares ``reference = True`` (it
+    refuses any other component that implements it), and marks every results row of the
+    mission with ``reference = 1``, so that reports label it a reference.
+
+    :param truth: a copy of the true S of this epoch, before any injector, with the values no
+        observation shows (``truth.hidden``, e.g. each human's fatigue curve).
+    :param obs: the observed S, as ``ata_reconstruct`` received it.
+    :param out: the estimates the reconstructors wrote; write (or overwrite) entries of it.
+    """
+
+
 @hookspec(firstresult=True)
 def ata_initial_allocation(ctx: "DecisionContext") -> "Allocation":
     """Return the initial allocation (ITA) at t = 0. Called on the initial-policy component only."""

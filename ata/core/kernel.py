@@ -30,6 +30,16 @@ WORLD_HOOKS = ("ata_setup", "ata_inherent", "ata_observe", "ata_inject",
                "ata_allocation_changed", "ata_advance", "ata_epoch_end")
 """The phase hooks that receive the world (``sim``) before the episode ends: a
 decision-maker may implement none of them."""
+REFERENCE_HOOK = "ata_reconstruct_reference"
+"""The hook that hands a reconstructor the true state: only a declared reference may have it."""
+REFERENCE_COLUMN = "reference"
+"""The results column (1 in every row) of a mission with a reference reconstructor."""
+
+
+def is_reference(component: Any) -> bool:
+    """Whether a component declares itself a reference (``reference = True``): a yardstick that
+    reads the true state, never a method."""
+    return getattr(component, "reference", False) is True
 
 
 def build_component(registry: Register, mission: Mission, kind: str, name: str) -> Any:
@@ -111,6 +121,8 @@ class Simulation:
             self._callers[slot] = self.pm.subset_hook_caller(
                 hook_name, remove_plugins=[c for c in everyone if c is not component])
         self._refuse_world_hooks(ordered)
+        self.references = self._references(ordered)
+        """The reference reconstructors' names: those the kernel hands the true state."""
         names = {n for slot in DECISION_SLOTS for n in _names(getattr(mission.slots, slot))}
         self.decision_settings = MappingProxyType(
             {n: copy.deepcopy(mission.component_settings.get(n)) for n in sorted(names)})
@@ -136,6 +148,25 @@ class Simulation:
                         "hands it the world's state and generator: a decision-maker sees the "
                         "scenario through its DecisionContext alone (a reconstructor through "
                         "ata_reconstruct; see docs/plugins.md)")
+
+    def _references(self, ordered: list[tuple[str, Any]]) -> list[str]:
+        """The reference reconstructors of the mission; a ContractError when a component that
+        is not one implements the hook that would hand it the true state."""
+        impls = [i.plugin for i in getattr(self.pm.hook, REFERENCE_HOOK).get_hookimpls()]
+        names = []
+        for name, component in ordered:
+            slot = name.split(":", 1)[0]
+            comp = getattr(component, "component_name", None) or type(component).__name__
+            declared = slot == "reconstructors" and is_reference(component)
+            if any(p is component for p in impls) and not declared:
+                raise ContractError(
+                    f"{slot} component {comp!r} implements {REFERENCE_HOOK}, which hands it "
+                    "the true state: only a reconstructor whose class declares reference = "
+                    "True may, and its results are labelled a reference, never a method (see "
+                    "docs/plugins.md)")
+            if declared and comp not in names:
+                names.append(comp)
+        return names
 
     @property
     def batch_size(self) -> int:
@@ -206,11 +237,15 @@ class Simulation:
         sim.now = sim.epoch * sim.clock.epoch_s
         truth = Observation()
         hook.ata_observe(sim=sim, obs=truth)
-        observed = truth.copy()
+        observed = truth.observable()             # the hidden values never reach S
         hook.ata_inject(sim=sim, obs=observed)
         recon: dict[str, np.ndarray] = {}
-        hook.ata_reconstruct(sim=DecisionView(sim, self.decision_rng), obs=observed,
-                             inherent=self.inherent, out=recon)
+        view = DecisionView(sim, self.decision_rng)
+        hook.ata_reconstruct(sim=view, obs=observed, inherent=self.inherent, out=recon)
+        if self.references:
+            # a copy: a reference may not change the truth the kernel checks reallocations by
+            getattr(hook, REFERENCE_HOOK)(sim=view, truth=truth.copy(), obs=observed,
+                                          inherent=self.inherent, out=recon)
         ctx = self._context(observed, recon)
         self.last_context = self._pending = ctx
         self.last_truth = truth
@@ -311,5 +346,7 @@ class Simulation:
         """After the last epoch: the components write their per-scenario results; the record."""
         record = self.sim.record
         record.metrics["refused_changes"] = record.refused.astype(float)
+        if self.references:
+            record.metrics[REFERENCE_COLUMN] = np.ones(self.sim.batch_size)
         self.pm.hook.ata_episode_end(sim=self.sim)
         return record

@@ -108,8 +108,16 @@ class Observation(dict):
     def __init__(self, *args: Any, **kwargs: Any):
         super().__init__(*args, **kwargs)
         self.extras: dict[str, np.ndarray] = {}
+        self.hidden: dict[str, np.ndarray] = {}
+        """Values of the true state that are never observed (`hide`)."""
         self.allowed: np.ndarray | None = None   # the restrictions not tied to a row
         self.n_tasks: int | None = None
+
+    def hide(self, name: str, values: np.ndarray) -> None:
+        """Add a value of the true state that no observation shows (a hidden parameter of the
+        world, leading axis B): the kernel leaves it out of the observed S (`observable`), and
+        only a reference reconstructor (``ata_reconstruct_reference``) receives it."""
+        self.hidden[name] = np.asarray(values)
 
     def restrict_reallocation(self, allowed: np.ndarray) -> None:
         """A model's say on which tasks may be reallocated now: (B, P) bool, combined with the
@@ -144,21 +152,31 @@ class Observation(dict):
         return table
 
     def _with(self, tables: dict[str, EntityTable], extras: dict[str, np.ndarray],
-              allowed: np.ndarray | None) -> "Observation":
+              allowed: np.ndarray | None, hidden: dict[str, np.ndarray]) -> "Observation":
         out = Observation(tables)
         out.extras, out.allowed, out.n_tasks = extras, allowed, self.n_tasks
+        out.hidden = hidden
         return out
 
     def copy(self) -> "Observation":
+        """A deep copy, hidden values included (a copy of the truth is the truth)."""
         return self._with({k: v.copy() for k, v in self.items()},
                           {k: v.copy() for k, v in self.extras.items()},
-                          None if self.allowed is None else self.allowed.copy())
+                          None if self.allowed is None else self.allowed.copy(),
+                          {k: v.copy() for k, v in self.hidden.items()})
+
+    def observable(self) -> "Observation":
+        """A deep copy without the hidden values: what an observation may show of it."""
+        out = self.copy()
+        out.hidden = {}
+        return out
 
     def take(self, rows: np.ndarray) -> "Observation":
         """The observation of a sub-batch of scenarios."""
         return self._with({k: v.take(rows) for k, v in self.items()},
                           {k: v[rows] for k, v in self.extras.items()},
-                          None if self.allowed is None else self.allowed[rows])
+                          None if self.allowed is None else self.allowed[rows],
+                          {k: v[rows] for k, v in self.hidden.items()})
 
 
 AUTO = -1

@@ -90,16 +90,17 @@ def pairings(a: Results, b: Results | None = None, base: str | None = None,
         if base not in a.methods:
             raise MissionError("--base", None, f"no method {base!r} in the results; methods: "
                                + ", ".join(a.methods))
-        return [Pairing(m, base, m) for m in wanted if m != base]
+        return [Pairing(m, base, a.label(m)) for m in wanted if m != base]
     if base is not None:
         if base not in b.methods:
             raise MissionError("--base", None, f"no method {base!r} in the second folder's "
                                "results; methods: " + ", ".join(b.methods))
-        return [Pairing(m, base, m if m == base else f"{m} - {base}") for m in wanted]
+        return [Pairing(m, base, a.label(m) if m == base else f"{a.label(m)} - {b.label(base)}")
+                for m in wanted]
     if len(a.cells()) == 1 and len(b.cells()) == 1:
         ma, mb = a.methods[0], b.methods[0]
-        return [Pairing(ma, mb, ma if ma == mb else f"{ma} - {mb}")]
-    found = [Pairing(m, m, m) for m in wanted if m in b.methods]
+        return [Pairing(ma, mb, a.label(ma) if ma == mb else f"{a.label(ma)} - {b.label(mb)}")]
+    found = [Pairing(m, m, a.label(m)) for m in wanted if m in b.methods]
     if not found:
         raise MissionError("", None, "no method of the first folder is in the second ("
                            + ", ".join(b.methods) + "); name the one to compare with: --base "
@@ -240,7 +241,7 @@ def mean_tables(folders: list[tuple[str, Results]], columns: list[str],
             sel = res.select(m, s, lv)
             means = [np.asarray(res.columns[c][sel], dtype=float) for c in columns]
             cells.setdefault((s, lv), []).append(
-                [m] + ([name] if len(folders) > 1 else []) + [str(int(sel.sum()))]
+                [res.label(m)] + ([name] if len(folders) > 1 else []) + [str(int(sel.sum()))]
                 + ["-" if not np.isfinite(v).any() else f"{nanmean(v):.3f}" for v in means])
     header = ["method"] + (["folder"] if len(folders) > 1 else []) + ["rows"] + \
         [f"{c}, mean" for c in columns]

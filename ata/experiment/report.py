@@ -164,7 +164,7 @@ def table_rows(report: Report, setting: str, level: str,
     rows = []
     for cell in report.table(setting, level):
         d, lo, hi = cell.diff
-        rows.append([cell.method, str(cell.n),
+        rows.append([report.results.label(cell.method), str(cell.n),
                      f"{cell.mean:.1f} [{cell.low:.1f}, {cell.high:.1f}]",
                      fmt(cell.fraction_of_u, ".3f"),
                      fmt(100 * cell.classified_share, ".1f") + "%"
@@ -229,7 +229,7 @@ def results_markdown(res: Results, pairs: list[tuple[str, str]] | None = None,
     c = res.columns
     rows = []
     for m in res.methods:
-        row = [m]
+        row = [res.label(m)]
         for s, lv in groups:
             sel = res.select(m, s, lv)
             if not sel.any():
@@ -245,7 +245,7 @@ def results_markdown(res: Results, pairs: list[tuple[str, str]] | None = None,
     for a, b in default_pairs(res) if pairs is None else pairs:
         if a not in res.methods or b not in res.methods:
             continue
-        row = [f"{a} - {b}"]
+        row = [f"{res.label(a)} - {res.label(b)}"]
         for s, lv in groups:
             va, vb = paired_values(res, res.select(a, s, lv), res.select(b, s, lv))
             if not va.size:                          # not run, or no paired scenarios
@@ -337,7 +337,7 @@ def figures(report: Report, out_dir: str | Path, paired: list[Paired] = ()) -> l
             mean = np.array([cells[lv].mean if lv in cells else np.nan for lv in levels])
             low = np.array([cells[lv].low if lv in cells else np.nan for lv in levels])
             high = np.array([cells[lv].high if lv in cells else np.nan for lv in levels])
-            ax.bar(x + (k - (len(methods) - 1) / 2) * width, mean, width, label=method,
+            ax.bar(x + (k - (len(methods) - 1) / 2) * width, mean, width, label=res.label(method),
                    yerr=np.vstack([mean - low, high - mean]), capsize=2)
         ax.set_xticks(x, [f"{lv}" for lv in levels])
         ax.set_xlabel("uncertainty")

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ata.core.errors import MissionError
+from ata.core.kernel import REFERENCE_COLUMN
 from ata.core.mission import UNCERTAINTY_LEVELS
 
 RESAMPLES = 2000
@@ -104,6 +105,16 @@ class Results:
     def select(self, method: str, setting: str, level: str) -> np.ndarray:
         c = self.columns
         return (c["method"] == method) & (c["setting"] == setting) & (c["uncertainty"] == level)
+
+    def is_reference(self, method: str) -> bool:
+        """Whether the method's rows come from a mission with a reference reconstructor (the
+        kernel's ``reference`` column): a yardstick reading the true state, not a method."""
+        ref = self.columns.get(REFERENCE_COLUMN)
+        return ref is not None and bool(np.any(ref[self.columns["method"] == method] == 1))
+
+    def label(self, method: str) -> str:
+        """The method's name in tables: "(reference)" added to a reference's."""
+        return f"{method} (reference)" if self.is_reference(method) else method
 
     def cells(self) -> list[Cell]:
         """Every (method, setting, level) that has rows, methods first, in report order."""

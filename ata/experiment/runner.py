@@ -18,7 +18,7 @@ import tomli_w
 from ata import __version__
 from ata.core import mission as mission_mod
 from ata.core.errors import MissionError
-from ata.core.kernel import Simulation
+from ata.core.kernel import REFERENCE_COLUMN, Simulation
 from ata.core.mission import Mission
 from ata.core.registry import Register, collect_components, get_plugin_manager, providers
 from ata.experiment import runlog
@@ -304,7 +304,8 @@ def summary_rows(session: Session, result: RunResult) -> list[tuple[str, str]]:
     first = m.settings.first_scenario
     ci = (f" ± {s['score_ci95']:.1f} (mean ± 95% CI half-width)" if math.isfinite(
         s["score_ci95"]) else " (one scenario: no confidence interval)")
-    return [("method", m.method_label()),
+    reference = " (reference)" if REFERENCE_COLUMN in result.metrics else ""
+    return [("method", m.method_label() + reference),
             ("team", f"setting {m.settings.setting}: {m.sizes.humans} humans, "
                      f"{m.sizes.robots} robots, {m.sizes.tasks} POIs"),
             ("uncertainty", f"{m.settings.uncertainty} (fatigue variance {m.fatigue_variance}, "

@@ -31,6 +31,9 @@ FATIGUE_SPREAD = 1.0
 
 BELIEF_KEYS = ("fatigue_onset", "fatigue_slope", "fatigue_weight")
 """The keys of ``ctx.reconstructed`` that carry a `FatigueBelief` (each (B, H, K))."""
+CURVE_KEYS = ("fatigue_onset", "fatigue_slope")
+"""The names under which a human model hides each human's true onset and slope in the true S
+(``Observation.hide``, each (B, H)): never observed, only a reference reconstructor gets them."""
 
 
 def onset_range(spread: float) -> tuple[float, float]:

@@ -107,9 +107,9 @@ class HumanModel:
     def __init__(self, settings: "HumanModel.Settings", mission: object):
         self.settings = s = settings
         self.constants = HumanConstants(
-            fatigue_floor=s.fatigue_floor, fatigue_spread=s.fatigue_spread, window_s=s.window_s, sa_drop=s.sa_drop,
-            sa_recovery_per_min=s.sa_recovery_per_min, switch_cost_s=s.switch_cost_s,
-            rebrief_s=s.rebrief_s)
+            fatigue_floor=s.fatigue_floor, fatigue_spread=s.fatigue_spread, window_s=s.window_s,
+            sa_drop=s.sa_drop, sa_recovery_per_min=s.sa_recovery_per_min,
+            switch_cost_s=s.switch_cost_s, rebrief_s=s.rebrief_s)
 
     @hookimpl
     def ata_setup(self, sim: SimState) -> None:
@@ -156,6 +156,8 @@ class HumanModel:
                           1.0 - tables.utilisation(h.busy_ticks, now, tick, s.window_s), sa],
                          axis=-1)
         obs.add("humans", HUMAN_STATE, feats)
+        for key, curve in zip(fatigue.CURVE_KEYS, (h.fatigue_onset, h.fatigue_slope)):
+            obs.hide(key, curve.copy())
 
     def _fatigue(self, hours: np.ndarray, rows) -> np.ndarray:
         """True F_f at working time `hours` of the humans `rows` ((b, h) index arrays, or ...

@@ -1,12 +1,18 @@
 """The identity reconstructor: passes the observed state on unchanged (the w/o.AUX ablation); the
-arrivals reconstructor: captures that the latency hides, read from the robot rows."""
+arrivals reconstructor: captures that the latency hides, read from the robot rows; the oracle:
+the true state, a reference (MODEL.md section 6's value of information), never a method."""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
 from ata import hookimpl
+from ata.core.settings import param
 from ata.core.state import DecisionView, Observation
+from ata.model import fatigue
+from ata.model.team import HumanConstants
 
 
 class IdentityReconstructor:
@@ -58,7 +64,46 @@ class ArrivalReconstructor:
         out["captured_guess"] = guess[..., None].astype(float)
 
 
+ORACLE_GROUPS = {"fatigue": "humans", "robots": "robots", "tasks": "tasks"}
+"""The oracle's channels and the group of S each one makes true."""
+
+
+class OracleReconstructor:
+    """A reference: the true rows of S, for the channels of its settings, written over what the
+    reconstructors before it wrote (``out[group]``); for ``fatigue`` also each human's true
+    curve as an exact `FatigueBelief` (`ata.model.fatigue.BELIEF_KEYS`, K = 1). The rows of
+    S a channel leaves out stay as observed. What it yields minus what the same policy yields
+    with ``identity`` is the value of that information (MODEL.md section 6)."""
+
+    reference = True
+    """The kernel hands it the true state, and labels its results a reference."""
+
+    @dataclass
+    class Settings:
+        channels: list[str] = param(list(ORACLE_GROUPS), choices=tuple(ORACLE_GROUPS),
+                                    help="what it makes true: fatigue (the human rows and "
+                                         "curves), robots and tasks (their rows)")
+
+    def __init__(self, settings: "OracleReconstructor.Settings", mission: object):
+        self.channels = list(dict.fromkeys((settings or self.Settings()).channels))
+
+    @hookimpl
+    def ata_reconstruct_reference(self, sim: DecisionView, truth: Observation,
+                                  obs: Observation, inherent: Observation,
+                                  out: dict[str, np.ndarray]) -> None:
+        for channel in self.channels:
+            out[ORACLE_GROUPS[channel]] = truth[ORACLE_GROUPS[channel]].features
+        # a human model without individual curves hides none: the true F_f now is all there is
+        if "fatigue" in self.channels and all(k in truth.hidden for k in fatigue.CURVE_KEYS):
+            onset, slope = (truth.hidden[k] for k in fatigue.CURVE_KEYS)
+            floor = sim.published(HumanConstants).fatigue_floor
+            exact = fatigue.FatigueBelief.exact(onset, slope, floor)
+            for key, value in zip(fatigue.BELIEF_KEYS, (exact.onset, exact.slope, exact.weight)):
+                out[key] = value
+
+
 @hookimpl
 def ata_register_components(register) -> None:
     register("reconstructor", "identity", IdentityReconstructor)
     register("reconstructor", "arrivals", ArrivalReconstructor)
+    register("reconstructor", "oracle", OracleReconstructor)
