@@ -61,10 +61,14 @@ def tiny_data(seed: int, P: int = 4, H: int = 2, R: int = 2) -> M.ScenarioData:
     gen = np.random.default_rng(seed)
     theta_s = gen.uniform(0, np.pi / 4, H)
     theta_s[0] = 0.7                       # one highly skilled human, so navigators are options
-    return M.ScenarioData(kind=gen.integers(0, 2, P), diff=gen.integers(0, 3, P),
-                          xy=gen.uniform(0, 2000, (P, 2)),
-                          eta=np.sin(gen.uniform(0, np.pi / 4, H)), lam=np.sin(theta_s),
-                          skill=tables.skill_band(theta_s), hours=gen.uniform(0, 1.5, H),
+    kind, diff = gen.integers(0, 2, P), gen.integers(0, 3, P)
+    xy, eta = gen.uniform(0, 2000, (P, 2)), np.sin(gen.uniform(0, np.pi / 4, H))
+    hours = gen.uniform(0, 1.5, H)
+    # the population line's F_f now and after a shift at the default cap (0.65 of 600 s)
+    worn = hours + M.MilpSettings().human_utilisation_cap * 600.0 / 3600.0
+    return M.ScenarioData(kind=kind, diff=diff, xy=xy, eta=eta, lam=np.sin(theta_s),
+                          skill=tables.skill_band(theta_s), hours=hours,
+                          fatigue_now=tables.fatigue(hours), fatigue_worn=tables.fatigue(worn),
                           rtype=np.array([0, 1] * (R // 2)), speed=np.array([8.0, 3.0] * (R // 2)),
                           area_m=2000.0, horizon_s=600.0, event_p=0.2,
                           fatigue_sigma=np.sqrt(0.1))
@@ -149,9 +153,11 @@ class Scripted(Fixed):
 
 def make_sim(triples, *, humans=1, robots=1, tasks=1, batch=1, condition="never",
              reallocation=None, extra=()):
-    """A traced simulation of `batch` scenarios, reset, with no uncertainty at all; `extra`
-    holds more --set overrides (the re-tasking costs, say)."""
-    s = load_session(str(BASELINE_MISSION), [*extra, "mission.setting='custom'",
+    """A traced simulation of `batch` scenarios, reset, with no uncertainty at all and every
+    human on the population's fatigue line (spread 0, so hand computations use 1.3 - 0.3 T);
+    `extra` holds more --set overrides (the re-tasking costs, say)."""
+    s = load_session(str(BASELINE_MISSION), ["human.fatigue_spread=0", *extra,
+                                             "mission.setting='custom'",
                                              f"mission.humans={humans}",
                             f"mission.robots={robots}", f"mission.tasks={tasks}",
                             "mission.uncertainty='none'", f"mission.scenarios={batch}",

@@ -137,11 +137,13 @@ def test_spaces_follow_the_team_and_the_tables(session):
 @pytest.mark.parametrize("uncertainty", ["high", "none"])
 def test_observations_show_the_observed_state_never_the_truth(mission_file, uncertainty):
     """The fatigue the agent sees is that of the observed S: at high uncertainty it is noisy,
-    off the true F_f of the working time (which is seen without noise); with no uncertainty it
-    is the true one. The exposed context holds no true state."""
+    off the true F_f of the working time (at spread 0 every human is on the population line, a
+    function of the working time, which is seen without noise); with no uncertainty it is the
+    true one. The exposed context holds no true state."""
     from ata.model import tables
 
-    env = ata.gym.make(mission_file, overrides=[f"mission.uncertainty='{uncertainty}'"])
+    env = ata.gym.make(mission_file, overrides=[f"mission.uncertainty='{uncertainty}'",
+                                                "human.fatigue_spread=0"])
     obs, _ = env.reset(seed=3)
     hours, fatigue = (env.columns["observed_humans"].index(c) for c in ("working_time", "fatigue"))
     for _ in range(T):

@@ -74,6 +74,7 @@ def test_option_values_by_hand():
     d.diff[:] = 0
     d.skill[:] = 0
     d.hours[:] = 0.5
+    d.fatigue_now[:] = 1.0                 # F_f at 0.5 h, before any onset
     d.eta[:], d.lam[:] = 0.6, 0.5
     model = M.build_model(d, M.MilpSettings(redundancy_margin=[0.0, 0.0, 0.0]))
     # UAV, auto, onboard: Upper-Medium image of a low-difficulty air POI, P_rc = 0.7,

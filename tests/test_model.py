@@ -45,7 +45,7 @@ def test_a_channel_holds_one_value_per_type_and_names_the_missing_publisher():
 def test_the_team_models_hold_the_model_defaults_once():
     assert HumanModel(HumanModel.Settings(), None).constants == HumanConstants()
     assert RobotModel(RobotModel.Settings(), None).constants == RobotConstants()
-    assert HumanConstants() == HumanConstants(0.4, 300.0, 0.25, 0.1, 30.0, 20.0)
+    assert HumanConstants() == HumanConstants(0.4, 1.0, 300.0, 0.25, 0.1, 30.0, 20.0)
     assert RobotConstants() == RobotConstants(3.0, 10.0, (2.0 / 3.0, 1.0, 1.5))
 
 

@@ -244,10 +244,15 @@ def test_both_costs_zero_reproduce_free_reallocation_exactly(case):
                                      "mission.uncertainty='high'"]}[case]
     # The random policy of c1e16e6 drew from the world's generator, which no decision-maker
     # may reach now: the test hands the one it runs that generator itself.
+    # The code of c1e16e6 was of MODEL.md revision 2: spread 0, and its policies computed
+    # fatigue from the working hours, which the oracle's exact fatigue belief reproduces.
     golden = json.loads(GOLDEN.read_text())[case]
     s = load_session(str(BASELINE_MISSION), ["mission.scenarios=40", "mission.seed=77",
                                              "mission.batch_size=40", *sets, *costs(0.0, 0.0),
-                                             "components.injectors=['fatigue_noise']"])
+                                             "components.injectors=['fatigue_noise']",
+                                             "human.fatigue_spread=0",
+                                             "components.reconstructors=['identity', 'oracle']",
+                                             "oracle.channels=['fatigue']"])
     if case != "random_always":
         result = run_mission(s)
         total, reallocations, metrics = result.total, result.reallocations, result.metrics

@@ -7,6 +7,7 @@ tests/data/rev2_golden.json holds per-scenario results of the code before indivi
 (b) high, 4 scenarios.
 """
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -78,3 +79,60 @@ def test_true_fatigue_follows_each_humans_curve_and_is_hidden():
     # neither I nor the observed S carries the onset or the slope
     for table in (ctx.inherent["humans"], ctx.observed["humans"]):
         assert not {"fatigue_onset", "fatigue_slope"} & set(table.names)
+
+
+@pytest.mark.parametrize("case", ["greedy_a_high", "greedy_b_high"])
+def test_greedy_with_the_oracles_fatigue_is_revision_2_bit_for_bit(case):
+    # at spread 0 the exact belief of one curve is revision 2's line: greedy handed the true
+    # fatigue plans as revision 2's greedy, which computed it from the working hours
+    got = run(case, "human.fatigue_spread=0", "components.reconstructors=['identity', 'oracle']",
+              "oracle.channels=['fatigue']")
+    assert got == GOLDEN[case]
+
+
+def test_greedy_reads_the_fatigue_it_is_given():
+    # with identity it reads the noisy observation, moved along the population line: not
+    # revision 2's plans even at spread 0
+    assert run("greedy_a_high", "human.fatigue_spread=0")["total"] != GOLDEN["greedy_a_high"]["total"]
+
+
+def milp_inputs(*reconstructors):
+    from ata.plugins.policies import milp as M
+
+    s = load_session(str(BASELINE_MISSION), [
+        "mission.scenarios=2", "mission.uncertainty='high'", "human.t0_max_h=3.0",
+        "components.initial='milp'", "components.condition='never'",
+        "components.reallocation='keep'", f"components.reconstructors={list(reconstructors)!r}"])
+    sim = Simulation(s.mission, s.registry, np.arange(2))
+    sim.reset()
+    ctx = sim.begin_epoch()
+    return sim, M.scenario_data(ctx, s.mission, s.mission.component_settings["milp"])
+
+
+def test_milp_takes_fatigue_from_the_belief_and_the_noise_margin_only_off_the_raw_one():
+    from ata.plugins.policies import milp as M
+
+    sim, raw = milp_inputs("identity")
+    _, exact = milp_inputs("identity", "oracle")
+    truth, observed = sim.last_truth["humans"], sim.last_context.observed["humans"]
+    h = sim.sim.group("humans")
+    cap_h = 0.65 * sim.sim.clock.horizon_s / 3600.0     # a shift at the default cap
+    for b in range(2):
+        # identity: the noisy F_f now; the population line's change over the shift
+        noisy = np.clip(observed.col("fatigue")[b], 0.4, 1.0)
+        hours = observed.col("working_time")[b]
+        assert np.allclose(raw[b].fatigue_now, noisy)
+        line = fatigue.individual(hours + cap_h, 1.0, 0.3, 0.4) - \
+            fatigue.individual(hours, 1.0, 0.3, 0.4)
+        assert np.allclose(raw[b].fatigue_worn, np.clip(noisy + line, 0.4, 1.0))
+        assert raw[b].fatigue_noisy
+        # the oracle: each human's true curve, no noise margin
+        assert np.array_equal(exact[b].fatigue_now, truth.col("fatigue")[b])
+        assert np.array_equal(exact[b].fatigue_worn, fatigue.individual(
+            hours + cap_h, h.fatigue_onset[b], h.fatigue_slope[b], 0.4))
+        assert not exact[b].fatigue_noisy
+    # without the noise margin fewer options fail the redundancy requirement
+    settings = M.MilpSettings()
+    sizes = [M.build_model(dataclasses.replace(raw[0], fatigue_noisy=noisy), settings).task.size
+             for noisy in (True, False)]
+    assert sizes == [776, 976]

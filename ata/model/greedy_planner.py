@@ -8,8 +8,10 @@ being navigated by the free-first highly skilled human (faster, one image qualit
 the human is busy for the leg), and classifying onboard against the best human classifier for
 that image quality and difficulty. Human time has a price in points per second, so humans go
 where they add the most; classifications that could not finish by the horizon are worth 0.
-Everything it reads is observable: I, the observed S (fatigue is predicted from the noise-free
-working time), and the constants the team models publish (`ata.model.team`).
+Everything it reads is observable: I, S as the reconstructors give it (`ata.model.plan.seen`),
+each human's fatigue belief (`ata.model.plan.fatigue_belief`: with ``identity``, the noisy
+fatigue observed now moved along the population line), and the constants the team models
+publish (`ata.model.team`).
 
 Reallocation prices the re-tasking cost of MODEL.md section 3a (`ata.model.retask`). Where it
 is not zero, the planner weighs three candidates by their projected value in expectation
@@ -28,9 +30,9 @@ import numpy as np
 from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext
 from ata.model import tables
-from ata.model.plan import as_seen, plan_start, project, task_attributes
+from ata.model.plan import as_seen, fatigue_belief, plan_start, project, seen, task_attributes
 from ata.model.retask import RetaskCost, retask_cost, worth
-from ata.model.team import HumanConstants, RobotConstants
+from ata.model.team import RobotConstants
 
 HUMAN_TIME_COST = 0.04
 """The price of a human second in points, greedy's default."""
@@ -82,7 +84,7 @@ class GreedyPlanner:
                   cost: RetaskCost) -> Allocation:
         """Keep, repair or re-plan in full (if `replan_in_full`), whichever is worth most net
         of its cost."""
-        prev, S = ctx.previous, ctx.observed
+        prev, S = ctx.previous, seen(ctx)
         attrs = task_attributes(ctx)
         working = S["robots"].col("working") > 0.5
         lost = ~np.take_along_axis(working, prev.robot, axis=1)
@@ -146,12 +148,12 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
           after: dict[str, np.ndarray] | None = None) -> Allocation:
     """Greedy list scheduling of the `open_` tasks. `after` (robot_free, robot_xy in metres,
     human_free) replaces the starting state: the plan then follows work already planned."""
-    I, S = ctx.inherent, ctx.observed
+    I, S = ctx.inherent, seen(ctx)
     B, P = open_.shape
     H, R = ctx.sizes.humans, ctx.sizes.robots
     horizon, now = ctx.clock.horizon_s, ctx.time
     capture_s = ctx.published(RobotConstants).capture_s
-    fatigue_floor = ctx.published(HumanConstants).fatigue_floor
+    belief = fatigue_belief(ctx, S)
     eta, lam = I["humans"].col("cognitive"), I["humans"].col("expertise")
     skill = I["humans"].col("skill").astype(np.int64)
     r_uav = I["robots"].col("uav") > 0.5
@@ -243,7 +245,7 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
         combo0 = r_type[b_all, rs] * 2
 
         # best human classifier for each (quality, difficulty), given the plan so far
-        f_f = tables.fatigue(hours + np.maximum(human_free - now, 0) / 3600.0, fatigue_floor)
+        f_f = belief.at(hours + np.maximum(human_free - now, 0) / 3600.0)
         p_h = 0.5 + (eta * f_f * lam)[:, :, None] * tables.F_D.ravel()         # (B, H, 12)
         delay = np.maximum(human_free - t_free[:, None], 0.0)[:, :, None]
         net_h = points12 * (2 * p_h - 1) - s.human_time_cost * (t_bar + delay)

@@ -1,7 +1,7 @@
 """The humans' projected load while a plan is built step by step: when each is free, the work
-booked, and from it the fatigue and the utilisation over the trailing window (MODEL.md section
-5) at any time of the plan, in expectation. For policies that decode an allocation member by
-member (the ATA-HRL decoder)."""
+booked, and from it the fatigue (the plan start's `FatigueBelief` read at the hours booked) and
+the utilisation over the trailing window (MODEL.md section 5) at any time of the plan, in
+expectation. For policies that decode an allocation member by member (the ATA-HRL decoder)."""
 
 from __future__ import annotations
 
@@ -17,8 +17,9 @@ BIN_S = 10.0
 class HumanLoad:
     """The projected load of every human of E plans, (E, H), from a `PlanStart`.
 
-    :param fatigue_now: (E, H) the fatigue estimate now (raw or reconstructed S); the
-        projection moves it with the model's change over the hours booked.
+    :param fatigue_now: (E, H) the fatigue estimate now (raw or reconstructed S), kept as
+        ``fatigue_now`` for the decoder's features; the projection reads the start's belief
+        (``start.belief``) at the hours booked.
     :param util_now: (E, H) each human's utilisation over the trailing window now, spread
         evenly over that window; the plan's bookings add to it.
     """
@@ -42,13 +43,10 @@ class HumanLoad:
         self._fatigue_greedy: np.ndarray | None = None
 
     def fatigue_at(self) -> np.ndarray:
-        """Projected F_f of every human (E, H) after the work booked so far: the estimate now,
-        moved by the model's change over the booked hours."""
+        """Projected F_f of every human (E, H) after the work booked so far: the belief at the
+        working hours now plus the hours booked."""
         if self._fatigue is None:
-            floor, hours0 = self.start.fatigue_floor, self.start.hours
-            rise = (tables.fatigue(hours0 + self.booked / 3600.0, floor)
-                    - tables.fatigue(hours0, floor))
-            self._fatigue = np.clip(self.fatigue_now + rise, floor, 1.0)
+            self._fatigue = self.start.belief.at(self.start.hours + self.booked / 3600.0)
         return self._fatigue
 
     def _cum_at(self, t: np.ndarray) -> np.ndarray:
@@ -75,16 +73,16 @@ class HumanLoad:
         """For every human, classifying an image of quality q and difficulty d captured at
         `arrive` (each (E, N)): (success probability, finish, begin, utilisation, F_w, F_f),
         each (E, N, H). greedy: as the greedy planner projects it (F_w = 1, utilisation and
-        F_w None, F_f from the working hours now plus the time until the human is free)."""
+        F_w None, F_f the belief at the working hours now plus the time until the human is
+        free)."""
         start = self.start
         begin = np.maximum(arrive[..., None], self.free[:, None, :])
         finish = begin + tables.T_BAR[q, d][..., None]
         f_d = tables.F_D[q, d][..., None]
         if greedy:
             if self._fatigue_greedy is None:
-                self._fatigue_greedy = tables.fatigue(
-                    start.hours + np.maximum(self.free - start.now, 0) / 3600.0,
-                    start.fatigue_floor)[:, None, :]
+                self._fatigue_greedy = start.belief.at(
+                    start.hours + np.maximum(self.free - start.now, 0) / 3600.0)[:, None, :]
             f_f = self._fatigue_greedy
             f_w = u = None
             p = 0.5 + self._eta_lam * f_f * f_d

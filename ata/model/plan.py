@@ -1,13 +1,17 @@
 """Plans in expectation: where a plan starts from at a decision epoch, and what a fixed
 allocation is expected to earn from there (the projection model of the allocation policies).
 
-Everything here reads what a policy may read, the inherent information I and the observed state
-S, and the model's tables; nothing reads the scenario's random streams or its true state. The
-projection is the model *in expectation on the observed estimates*: robots visit their POIs in
-nearest-neighbour order at their nominal speeds, humans take work first come first served,
-fatigue follows the working hours (which S shows without noise), workload is taken as 1, and a
-classification that cannot end by the horizon earns nothing. The capture time and the fatigue
-floor are the ones the team models publish (`ata.model.team`).
+Everything here reads what a policy may read: the inherent information I, the state S as the
+reconstructors give it (`seen`: each group's rows from ``ctx.reconstructed[group]`` where a
+reconstructor wrote them, else the observed S), their estimates, and the model's tables; nothing
+reads the scenario's random streams. The projection is the model *in expectation on those
+estimates*: robots visit their POIs in nearest-neighbour order at their nominal speeds, humans
+take work first come first served, workload is taken as 1, and a classification that cannot end
+by the horizon earns nothing. Fatigue is each human's `FatigueBelief` (`fatigue_belief`) read at
+the working hours the plan has booked: a reconstructor's estimate of the human's curve where one
+gave it (``fatigue.BELIEF_KEYS``), else the fatigue of S now moved along the population line
+(with ``identity``, the raw noisy observation: MODEL.md revision 3 hides the individual curves).
+The capture time and the fatigue floor are the ones the team models publish (`ata.model.team`).
 """
 
 from __future__ import annotations
@@ -17,8 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ata.core.state import Allocation, DecisionContext
-from ata.model import tables
+from ata.core.state import Allocation, DecisionContext, EntityTable, Observation
+from ata.model import fatigue, tables
+from ata.model.fatigue import FatigueBelief
 from ata.model.team import CAPTURE_S, FATIGUE_FLOOR, HumanConstants, RobotConstants
 
 
@@ -47,10 +52,60 @@ class PlanStart:
     robot_at: np.ndarray       # (B, R) the POI a committed leg ends at (-1: none)
     capture_s: float = CAPTURE_S
     fatigue_floor: float = FATIGUE_FLOOR
+    belief: FatigueBelief | None = None
+    """What the plan believes of each human's fatigue curve; None: the population line."""
+
+    def __post_init__(self) -> None:
+        if self.belief is None:
+            shape = self.hours.shape
+            self.belief = FatigueBelief.exact(np.full(shape, fatigue.ONSET_H),
+                                              np.full(shape, fatigue.SLOPE_PER_H),
+                                              self.fatigue_floor)
 
     @property
     def batch(self) -> int:
         return self.points.shape[0]
+
+
+def seen(ctx: DecisionContext) -> Observation | None:
+    """S as the planners see it: each group's rows from ``ctx.reconstructed[group]`` where a
+    reconstructor wrote them (``identity`` the observed rows, the ``oracle`` the true ones),
+    else the observed table's. The observed S itself when no reconstructor wrote a group."""
+    S, rec = ctx.observed, ctx.reconstructed
+    if S is None or not any(g in rec for g in S):
+        return S
+    tables_ = {}
+    for group, table in S.items():
+        rows = rec.get(group)
+        if rows is not None and np.shape(rows) != table.features.shape:
+            raise ValueError(f"reconstructed[{group!r}] has shape {np.shape(rows)}, where S's "
+                             f"table has {table.features.shape}: a reconstructor that writes a "
+                             "group's name writes that group's rows")
+        tables_[group] = table if rows is None else EntityTable(
+            table.names, np.asarray(rows), table.mask, table.holds)
+    out = Observation(tables_)
+    out.extras, out.allowed, out.n_tasks = S.extras, S.allowed, S.n_tasks
+    return out
+
+
+def fatigue_belief(ctx: DecisionContext, S: Observation | None = None) -> FatigueBelief:
+    """Each human's fatigue belief at this epoch: a reconstructor's (``ctx.reconstructed``
+    under ``fatigue.BELIEF_KEYS``), else the fatigue column of `S` (default `seen`) moved ahead
+    along the population line from the working hours S shows."""
+    S = seen(ctx) if S is None else S
+    floor = ctx.published(HumanConstants).fatigue_floor
+    if S is None:                 # no S yet: fresh humans on the population line
+        B, H = ctx.reallocatable.shape[0], ctx.sizes.humans
+        return fatigue.belief_from(ctx.reconstructed, np.ones((B, H)), np.zeros((B, H)), floor)
+    humans = S["humans"]
+    return fatigue.belief_from(ctx.reconstructed, humans.col("fatigue"),
+                               humans.col("working_time"), floor)
+
+
+def believed(ctx: DecisionContext) -> bool:
+    """Whether a reconstructor handed the planners a belief of the fatigue curves (else they
+    move the fatigue of S along the population line)."""
+    return all(k in ctx.reconstructed for k in fatigue.BELIEF_KEYS)
 
 
 def as_seen(ctx: DecisionContext) -> DecisionContext:
@@ -65,13 +120,15 @@ def as_seen(ctx: DecisionContext) -> DecisionContext:
 
 def task_attributes(ctx: DecisionContext) -> np.ndarray:
     """(B, P, 2) the POIs' kind and difficulty as currently seen (as estimated in I at t = 0)."""
-    src = ctx.observed["tasks"] if ctx.observed is not None else ctx.inherent["tasks"]
+    S = seen(ctx)
+    src = S["tasks"] if S is not None else ctx.inherent["tasks"]
     return np.stack([src.col("kind"), src.col("difficulty")], axis=-1)
 
 
 def plan_start(ctx: DecisionContext) -> PlanStart:
-    """The plan's starting state at this epoch, from I, the observed S and the constants the
-    team models published (`HumanConstants`, `RobotConstants`).
+    """The plan's starting state at this epoch, from I, S as the planners see it (`seen`), the
+    fatigue belief (`fatigue_belief`) and the constants the team models published
+    (`HumanConstants`, `RobotConstants`).
 
     A robot on a leg is free at the end of it (remaining distance at its nominal speed plus the
     capture), at its target; a captured image waiting for a human classifier books that human
@@ -83,7 +140,7 @@ def plan_start(ctx: DecisionContext) -> PlanStart:
     ctx = as_seen(ctx)
     capture_s = ctx.published(RobotConstants).capture_s
     fatigue_floor = ctx.published(HumanConstants).fatigue_floor
-    I, S = ctx.inherent, ctx.observed
+    I, S = ctx.inherent, seen(ctx)
     B, P = ctx.reallocatable.shape
     H, R = ctx.sizes.humans, ctx.sizes.robots
     now = float(ctx.time)
@@ -133,7 +190,7 @@ def plan_start(ctx: DecisionContext) -> PlanStart:
                      skill=h.col("skill").astype(np.int64), hours=hours, human_free=human_free,
                      robot_type=robot_type, speed=speed, robot_free=robot_free,
                      robot_xy=robot_xy, robot_at=robot_at, capture_s=capture_s,
-                     fatigue_floor=fatigue_floor)
+                     fatigue_floor=fatigue_floor, belief=fatigue_belief(ctx, S))
 
 
 @dataclass
@@ -159,9 +216,9 @@ def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None
     navigator, if any, is busy for the leg from when both are free; its classifier, if human,
     from the capture or when free, whichever is later. ``human_delay`` / ``robot_delay`` (B, H)
     / (B, R) seconds hold members before their first item (a re-brief, a re-plan). The
-    capture time and the fatigue floor are the start's.
+    capture time and the fatigue belief are the start's.
     """
-    capture_s, fatigue_floor = start.capture_s, start.fatigue_floor
+    capture_s, belief = start.capture_s, start.belief
     B, P = start.points.shape
     H = start.eta.shape[1]
     left = (start.open if tasks is None else tasks & start.open).copy()
@@ -232,9 +289,10 @@ def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None
         begin = np.maximum(arr, human_free[b, ch])
         t_bar = tables.T_BAR[q, dd]
         done = np.where(by_human, begin + t_bar, arr)
-        # fatigue at the start: working hours now, plus the human busy until then
-        f_f = tables.fatigue(start.hours[b, ch] + np.maximum(human_free[b, ch] - start.now, 0)
-                             / 3600.0, fatigue_floor)
+        # fatigue at the start: the belief at the working hours now, plus the human busy
+        # until then
+        f_f = belief.at(start.hours[b, ch] + np.maximum(human_free[b, ch] - start.now, 0)
+                        / 3600.0, rows=(b, ch))
         p_ok = np.where(cls >= 0, 0.5 + start.eta[b, ch] * f_f * start.lam[b, ch]
                         * tables.F_D[q, dd], tables.P_RC[q, dd])
         counted = in_time & (done <= start.horizon)

@@ -71,9 +71,12 @@ ORACLE_GROUPS = {"fatigue": "humans", "robots": "robots", "tasks": "tasks"}
 class OracleReconstructor:
     """A reference: the true rows of S, for the channels of its settings, written over what the
     reconstructors before it wrote (``out[group]``); for ``fatigue`` also each human's true
-    curve as an exact `FatigueBelief` (`ata.model.fatigue.BELIEF_KEYS`, K = 1). The rows of
-    S a channel leaves out stay as observed. What it yields minus what the same policy yields
-    with ``identity`` is the value of that information (MODEL.md section 6)."""
+    curve as an exact `FatigueBelief` (`ata.model.fatigue.BELIEF_KEYS`, K = 1); for
+    ``robots`` and ``tasks`` also ``committed_guess`` (B, P, 1), the tasks S shows open that
+    the true rows of those groups hold (a leg under way, a capture), which the planners then
+    leave alone (`ata.model.plan.as_seen`). The rows of S a channel leaves out stay as
+    observed. What it yields minus what the same policy yields with ``identity`` is the value
+    of that information (MODEL.md section 6)."""
 
     reference = True
     """The kernel hands it the true state, and labels its results a reference."""
@@ -93,6 +96,17 @@ class OracleReconstructor:
                                   out: dict[str, np.ndarray]) -> None:
         for channel in self.channels:
             out[ORACLE_GROUPS[channel]] = truth[ORACLE_GROUPS[channel]].features
+        held = [truth[g].holds for g in ("robots", "tasks")
+                if g in self.channels and truth[g].holds is not None]
+        if held:
+            shown = obs.reallocatable
+            committed = np.zeros(truth["tasks"].features.shape[:2], dtype=bool)
+            for holds in held:
+                b, n = np.nonzero(holds >= 0)
+                committed[b, holds[b, n]] = True
+            if shown is not None:
+                committed &= shown
+            out["committed_guess"] = committed[..., None].astype(float)
         # a human model without individual curves hides none: the true F_f now is all there is
         if "fatigue" in self.channels and all(k in truth.hidden for k in fatigue.CURVE_KEYS):
             onset, slope = (truth.hidden[k] for k in fatigue.CURVE_KEYS)

@@ -27,7 +27,7 @@ from ata.plugins.ata_hrl.features import (GROUPS, inherent_features, seen_state,
                                           to_tensors)
 from ata.plugins.ata_hrl.network import ATAHRLNet, COND_FEATURES
 from ata.plugins.ata_hrl.status import StatusTracker, guesses as status_guesses
-from ata.model import tables
+from ata.model.fatigue import FatigueBelief
 from ata.model.greedy_planner import GreedyPlanner, GreedySettings
 from ata.model.plan import PlanStart, as_seen, plan_start, project, task_attributes
 from ata.model.retask import retask_cost, worth
@@ -63,14 +63,19 @@ def decode_settings(ctx: DecisionContext) -> DecodeSettings:
 def decoder_start(ctx: DecisionContext, seen: dict[str, np.ndarray] | None
                   ) -> tuple[PlanStart, np.ndarray, np.ndarray]:
     """The decoder's start from I and S as the policy sees it: (plan start, fatigue now,
-    utilisation now). Reconstructed robot rows move the robots and take down the ones they
-    show down; a robot observed down stays down."""
+    utilisation now). The fatigue belief is plan_start's (a reconstructor's, else S's fatigue
+    moved along the population line), or, where the ``aux`` reconstructor estimated fatigue
+    (``aux_fatigue``), that estimate moved along the population line. Reconstructed robot rows
+    move the robots and take down the ones they show down; a robot observed down stays
+    down."""
     start = plan_start(ctx)
+    aux_fatigue = ctx.reconstructed.get("aux_fatigue")
+    if aux_fatigue is not None:
+        start.belief = FatigueBelief.shifted(aux_fatigue, start.hours, start.fatigue_floor)
     if seen is None:
-        # the initial allocation: the fatigue the model gives for the working hours S shows at
-        # t = 0 (as greedy's); nothing has been done yet, so no utilisation
-        return (start, tables.fatigue(start.hours, start.fatigue_floor),
-                np.zeros_like(start.hours))
+        # the initial allocation: the belief's fatigue now; nothing has been done yet, so no
+        # utilisation
+        return start, start.belief.at(start.hours), np.zeros_like(start.hours)
     if "aux_robots" in ctx.reconstructed:
         rob = seen["robots"]
         area = ctx.inherent.extras["area_m"][:, None]

@@ -78,8 +78,8 @@ class Decoder:
     :param start: where the plan starts (`ata.model.plan.plan_start`).
     :param todo: (E, P) the POIs to decode; the others keep ``previous`` (or robot 0, auto,
         onboard when there is none).
-    :param fatigue_now: (E, H) the fatigue estimate now (raw or reconstructed S); the plan
-        projects it forward with the model's slope in working hours.
+    :param fatigue_now: (E, H) the fatigue estimate now (raw or reconstructed S), a feature;
+        the plan projects fatigue forward with the start's belief (``start.belief``).
     :param util_now: (E, H) each human's utilisation over the trailing window now.
     :param previous: the allocation in force (reallocation), or None (initial allocation).
     """

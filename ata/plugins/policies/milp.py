@@ -33,6 +33,7 @@ from ata.runtime.cache import cache_dir
 from ata.runtime.executors import ProcessExecutor
 from ata.model import tables
 from ata.model.greedy_planner import GreedySettings, plan
+from ata.model.plan import believed, fatigue_belief, seen
 from ata.model.team import CAPTURE_S, FATIGUE_FLOOR, HumanConstants, RobotConstants
 
 STATUS_TEXT = {0: "optimal", 1: "limit reached", 2: "infeasible", 3: "unbounded", 4: "error",
@@ -68,9 +69,12 @@ class MilpSettings:
 
 @dataclass
 class ScenarioData:
-    """What the MILP of one scenario is built from: I, the working hours in S at t = 0, the
-    mission's horizon and uncertainty level, and the constants the team models publish. Plain
-    arrays, so it travels to worker processes."""
+    """What the MILP of one scenario is built from: I, the working hours in S at t = 0 and the
+    F_f the plan's belief gives then and after a shift at the utilisation cap, the mission's
+    horizon and uncertainty level, and the constants the team models publish. Plain arrays, so
+    it travels to worker processes. ``fatigue_noisy``: no reconstructor gave a belief, so it is
+    the noisy fatigue of S moved along the population line, and the pessimistic case takes the
+    noise off too (a reconstructor's belief has the noise in it already: not twice)."""
 
     kind: np.ndarray          # (P,) estimated kind
     diff: np.ndarray          # (P,) estimated difficulty
@@ -79,6 +83,8 @@ class ScenarioData:
     lam: np.ndarray           # (H,)
     skill: np.ndarray         # (H,)
     hours: np.ndarray         # (H,) working hours at t = 0
+    fatigue_now: np.ndarray   # (H,) F_f now, by the belief
+    fatigue_worn: np.ndarray  # (H,) F_f after a shift at the utilisation cap, by the belief
     rtype: np.ndarray         # (R,)
     speed: np.ndarray         # (R,) m/s
     area_m: float
@@ -87,6 +93,7 @@ class ScenarioData:
     fatigue_sigma: float
     fatigue_floor: float = FATIGUE_FLOOR
     capture_s: float = CAPTURE_S
+    fatigue_noisy: bool = True
 
 
 @dataclass
@@ -146,13 +153,13 @@ def build_model(d: ScenarioData, s: MilpSettings, margin_scale: float = 1.0) -> 
         hum = 0.5 + d.eta[ch] * f_f * f_w * d.lam[ch] * tables.F_D[quality, difficulty]
         return np.where(human, hum, on)
 
-    f_f_nom = tables.fatigue(d.hours, d.fatigue_floor)[ch]
+    f_f_nom = d.fatigue_now[ch]
     value = tables.expected_points(tables.POINTS[diff], success(q, diff, f_f_nom, 1.0))
     # pessimistic: fatigue after a shift at the utilisation cap, less the noise the level makes
-    # plausible; a busy workload; and, with the level's probability, a harder POI of either kind
-    worn = d.hours + s.human_utilisation_cap * d.horizon_s / 3600.0
-    f_f_pess = np.maximum(0.0, tables.fatigue(worn, d.fatigue_floor)
-                          - s.fatigue_sigmas * d.fatigue_sigma)[ch]
+    # plausible (where the belief is the noisy observation's); a busy workload; and, with the
+    # level's probability, a harder POI of either kind
+    noise = s.fatigue_sigmas * d.fatigue_sigma if d.fatigue_noisy else 0.0
+    f_f_pess = np.maximum(0.0, d.fatigue_worn - noise)[ch]
     f_w_pess = float(tables.workload(s.pessimistic_utilisation))
     p_same = success(q, diff, f_f_pess, f_w_pess)
     p_changed = np.minimum(success(q, hard, f_f_pess, f_w_pess),
@@ -379,25 +386,31 @@ def cacheable(sol: Solution, s: MilpSettings) -> bool:
     return sol.status != 4 and sol.seconds < 0.95 * s.time_limit_s
 
 
-def scenario_data(ctx: DecisionContext, mission) -> list[ScenarioData]:
-    """Split the batch's I (and the working hours of S at t = 0) into per-scenario inputs."""
-    I, S = ctx.inherent, ctx.observed
+def scenario_data(ctx: DecisionContext, mission,
+                  settings: MilpSettings | None = None) -> list[ScenarioData]:
+    """Split the batch's I (and the working hours of S at t = 0, with the F_f the plan's belief
+    gives then and after a shift at the `settings`' utilisation cap) into per-scenario inputs."""
+    I, S = ctx.inherent, seen(ctx)
     floor = ctx.published(HumanConstants).fatigue_floor
     capture_s = ctx.published(RobotConstants).capture_s
     area = I.extras["area_m"]
     hours = S["humans"].col("working_time") if S is not None else \
         np.zeros(I["humans"].features.shape[:2])
+    belief, cap = fatigue_belief(ctx, S), (settings or MilpSettings()).human_utilisation_cap
+    f_now, f_worn = belief.at(hours), belief.at(hours + cap * ctx.clock.horizon_s / 3600.0)
     xy = np.stack([I["tasks"].col("x"), I["tasks"].col("y")], -1) * area[:, None, None]
     rtype = np.where(I["robots"].col("uav") > 0.5, tables.UAV, tables.UGV)
     return [ScenarioData(kind=I["tasks"].col("kind")[b].astype(np.int64),
                          diff=I["tasks"].col("difficulty")[b].astype(np.int64), xy=xy[b],
                          eta=I["humans"].col("cognitive")[b], lam=I["humans"].col("expertise")[b],
                          skill=I["humans"].col("skill")[b].astype(np.int64), hours=hours[b],
+                         fatigue_now=f_now[b], fatigue_worn=f_worn[b],
                          rtype=rtype[b], speed=I["robots"].col("speed")[b],
                          area_m=float(area[b]), horizon_s=ctx.clock.horizon_s,
                          event_p=float(mission.event_probability),
                          fatigue_sigma=float(np.sqrt(mission.fatigue_variance)),
-                         fatigue_floor=float(floor), capture_s=float(capture_s))
+                         fatigue_floor=float(floor), capture_s=float(capture_s),
+                         fatigue_noisy=not believed(ctx))
             for b in range(ctx.reallocatable.shape[0])]
 
 
@@ -445,7 +458,7 @@ class MilpPolicy:
 
     @hookimpl
     def ata_initial_allocation(self, ctx: DecisionContext) -> Allocation:
-        self.solutions = self.solve_all(scenario_data(ctx, self.mission))
+        self.solutions = self.solve_all(scenario_data(ctx, self.mission, self.s))
         B, P = ctx.reallocatable.shape
         triples = np.zeros((B, P, 3), dtype=np.int64)
         failed = np.array([sol.triples is None for sol in self.solutions])
