@@ -35,7 +35,7 @@ from ata.core.kernel import Simulation
 from ata.core.mission import Mission
 from ata.core.registry import Register
 from ata.core.state import Allocation, Observation, SimState
-from ata.model import tables
+from ata.model import fatigue, tables
 from ata.model.team import HumanConstants, RobotConstants
 
 RIGHT, WRONG, UNCLASSIFIED, UNVISITED = 0, 1, 2, 3
@@ -263,7 +263,8 @@ class Episode:
             robot_type=r["type"][b], fail_time=r["fail_time"][b], legs=legs, waits=waits,
             replans=[(e[1], e[3]) for e in events if e[0] == "replan"],
             skill=h["skill"][b], work=work, times=np.asarray(recorder.times),
-            working_h=hours, fatigue=tables.fatigue(hours, floor),
+            working_h=hours, fatigue=fatigue.individual(
+                hours, h["fatigue_onset"][b][:, None], h["fatigue_slope"][b][:, None], floor),
             utilisation=np.stack(recorder.util)[:, b].T, sa=np.stack(recorder.sa)[:, b].T,
             epoch_times=np.arange(clock.n_epochs) * clock.epoch_s,
             fatigue_seen=seen[:, :, recorder.seen_names.index("fatigue")].T,
