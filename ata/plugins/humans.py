@@ -1,6 +1,11 @@
 """The human model: P_hc, classification time, fatigue, workload, situational awareness, and one
 first-come-first-served busy timeline per human (MODEL.md section 5).
 
+Each human tires on an individual curve (`ata.model.fatigue.individual`): an onset and a slope
+drawn at set-up within the ranges ``fatigue_spread`` sets, hidden from every decision-maker
+(neither inherent information nor observed state). With ``fatigue_spread = 0`` every human has
+the testbed's population line, and the model is MODEL.md revision 2's bit for bit.
+
 It owns group ``humans`` (`HumanState`).
 
 A reallocation that changes a human's work (an item gained or lost, as navigator or classifier,
@@ -32,7 +37,7 @@ from ata import hookimpl
 from ata.core.settings import param
 from ata.core.queues import last_per_key, scatter
 from ata.core.state import Allocation, Observation, SimState
-from ata.model import tables, team
+from ata.model import fatigue, tables, team
 from ata.model.retask import retasked_humans
 from ata.model.team import HumanConstants
 
@@ -50,6 +55,8 @@ class HumanState:
     lam: np.ndarray
     skill: np.ndarray             # skill band 0..2 (low, medium, high)
     t0_h: np.ndarray              # working hours at the start
+    fatigue_onset: np.ndarray     # the hidden individual fatigue curve: onset, hours of work,
+    fatigue_slope: np.ndarray     # and slope per hour after it
     busy_until: np.ndarray        # end of the last item booked
     booked_s: np.ndarray          # busy seconds booked so far
     busy_ticks: np.ndarray        # (B, H, n_ticks) busy seconds in each tick
@@ -83,6 +90,10 @@ class HumanModel:
         t0_max_h: float = param(1.5, min=0.0, max=24.0,
                                 help="initial working hours ~ U(0, t0_max_h)")
         fatigue_floor: float = param(team.FATIGUE_FLOOR, min=0.0, max=1.0, help="lowest F_f")
+        # above 1.5 the lowest slope, 0.3 (1 - 2s/3), would not be positive
+        fatigue_spread: float = param(fatigue.FATIGUE_SPREAD, min=0.0, max=1.5,
+                                      help="spread s of the hidden individual fatigue onsets "
+                                           "and slopes (0: everyone on the population line)")
         window_s: float = param(team.WINDOW_S, min=1.0, help="utilisation window in seconds")
         sa_drop: float = param(team.SA_DROP, min=0.0, max=1.0, help="SA lost on switching robot")
         sa_recovery_per_min: float = param(team.SA_RECOVERY_PER_MIN, min=0.0, max=1.0,
@@ -96,7 +107,7 @@ class HumanModel:
     def __init__(self, settings: "HumanModel.Settings", mission: object):
         self.settings = s = settings
         self.constants = HumanConstants(
-            fatigue_floor=s.fatigue_floor, window_s=s.window_s, sa_drop=s.sa_drop,
+            fatigue_floor=s.fatigue_floor, fatigue_spread=s.fatigue_spread, window_s=s.window_s, sa_drop=s.sa_drop,
             sa_recovery_per_min=s.sa_recovery_per_min, switch_cost_s=s.switch_cost_s,
             rebrief_s=s.rebrief_s)
 
@@ -107,10 +118,16 @@ class HumanModel:
         sim.publish(self.constants)
         theta_c = sim.rng.uniform("humans.theta_c", 0, (H,)) * s.theta_max
         theta_s = sim.rng.uniform("humans.theta_s", 0, (H,)) * s.theta_max
+        # streams of their own, so every other draw is what it was before individual fatigue
+        on_lo, on_hi = fatigue.onset_range(s.fatigue_spread)
+        sl_lo, sl_hi = fatigue.slope_range(s.fatigue_spread)
+        onset = on_lo + sim.rng.uniform("humans.fatigue_onset", 0, (H,)) * (on_hi - on_lo)
+        slope = sl_lo + sim.rng.uniform("humans.fatigue_slope", 0, (H,)) * (sl_hi - sl_lo)
         self.state = sim.own("humans", HumanState(
             theta_c=theta_c, theta_s=theta_s, eta=np.sin(theta_c), lam=np.sin(theta_s),
             skill=tables.skill_band(theta_s),
             t0_h=sim.rng.uniform("humans.t0", 0, (H,)) * s.t0_max_h,
+            fatigue_onset=onset, fatigue_slope=slope,
             busy_until=np.zeros((B, H)), booked_s=np.zeros((B, H)),
             busy_ticks=np.zeros((B, H, sim.clock.n_ticks)), sa=np.ones((B, H)),
             sa_time=np.zeros((B, H)), last_robot=np.full((B, H), -1, dtype=np.int64),
@@ -135,10 +152,17 @@ class HumanModel:
         h, s, now, tick = self.state, self.settings, sim.now, sim.clock.tick_s
         hours = tables.working_hours(h.t0_h, h.busy_ticks, now, tick)
         sa = tables.awareness(h.sa, h.sa_time, now, s.sa_recovery_per_min)
-        feats = np.stack([hours, tables.fatigue(hours, s.fatigue_floor),
+        feats = np.stack([hours, self._fatigue(hours, ...),
                           1.0 - tables.utilisation(h.busy_ticks, now, tick, s.window_s), sa],
                          axis=-1)
         obs.add("humans", HUMAN_STATE, feats)
+
+    def _fatigue(self, hours: np.ndarray, rows) -> np.ndarray:
+        """True F_f at working time `hours` of the humans `rows` ((b, h) index arrays, or ...
+        for all), on their individual curves."""
+        h = self.state
+        return fatigue.individual(hours, h.fatigue_onset[rows], h.fatigue_slope[rows],
+                                  self.settings.fatigue_floor)
 
     def _take_work(self, sim: SimState) -> None:
         """Add the items the queues bring to the pending lists."""
@@ -215,7 +239,7 @@ class HumanModel:
             duration[cls] = tables.T_BAR[q, d]
             hours = h.t0_h[cb, ch] + h.booked_s[cb, ch] / 3600.0
             u = self._utilisation_at(sim, cb, ch, start[cls])
-            f_f = tables.fatigue(hours, s.fatigue_floor)
+            f_f = self._fatigue(hours, (cb, ch))
             p_ok = tables.human_success(h.eta[cb, ch], h.lam[cb, ch], f_f, tables.workload(u),
                                         tables.F_D[q, d])
             sim.queue("tasks.classified").put(b=cb, p=cp, time=begin[cls] + duration[cls],
