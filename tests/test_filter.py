@@ -183,3 +183,74 @@ def test_noise_variance_is_the_one_the_mission_injects():
 
 def test_filter_passes_the_checker():
     check_component("reconstructor", FilterReconstructor)
+
+
+def run_truth(overrides: list[str], scenarios: int, seed: int = 5):
+    """Run the baseline mission (setting (a)) with the filter; yield at every epoch its
+    context, the true S and the humans' hidden onsets and slopes."""
+    s = load_session(str(BASELINE_MISSION), [
+        f"mission.seed={seed}", "components.reconstructors=['identity','filter']", *overrides])
+    sim = Simulation(s.mission, s.registry, list(range(scenarios)))
+    sim.reset()
+    hidden = sim.sim.group("humans")
+    onset, slope = np.asarray(hidden.fatigue_onset), np.asarray(hidden.fatigue_slope)
+    while sim.sim.epoch < sim.sim.clock.n_epochs:
+        ctx = sim.begin_epoch()
+        yield ctx, sim.last_truth, onset, slope
+        sim.end_epoch(*sim.decide(ctx))
+
+
+def test_zero_noise_in_the_simulator_is_within_the_grid_resolution():
+    """Exact observations of curves off the grid: F_f now is the best-fitting grid curve's,
+    within a fraction of the grid's spacing (onsets 1/15 h apart, slopes 0.027 per hour), and
+    within half as much on a grid twice as fine."""
+    for grid, worst_bound, mean_bound in ((15, 0.02, 0.002), (31, 0.01, 0.001)):
+        worst, errors = 0.0, []
+        for ctx, truth, onset, slope in run_truth([
+                "mission.uncertainty='high'", "fatigue_noise.variance=0",
+                f"filter.onsets={grid}", f"filter.slopes={grid}"], 16):
+            true_f = truth["humans"].col("fatigue")
+            assert np.array_equal(ctx.observed["humans"].col("fatigue"), true_f)
+            error = np.abs(fatigue_now(ctx.reconstructed) - true_f)
+            worst = max(worst, error.max())
+            errors.append(error.mean())
+        assert worst < worst_bound and np.mean(errors) < mean_bound, (grid, worst, errors)
+
+
+def test_with_noise_the_error_falls_as_observations_accumulate():
+    """(a) high, 40 scenarios: for the humans past 1.2 h of work at epoch 1 (all are past some
+    onsets), the mean absolute error of F_f now and of F_f an hour ahead falls from epoch 1 to
+    the last, while that of the prior's mean (the same grid, equal weights) rises: the humans
+    tire and their curves part, so the filter gains from what it observed, not from an easier
+    problem."""
+    errors = {}
+    chosen = None
+    for ctx, truth, onset, slope in run_truth(["mission.uncertainty='high'"], 40):
+        if ctx.epoch == 0:
+            continue
+        rec, hours = ctx.reconstructed, ctx.observed["humans"].col("working_time")
+        if chosen is None:
+            chosen = hours > 1.2
+        now = fatigue_now(rec)
+        belief = belief_from(rec, now, hours, FLOOR)
+        prior = belief_from({**rec, "fatigue_weight": np.full(rec["fatigue_weight"].shape,
+                                                               1.0 / 225)}, now, hours, FLOOR)
+        true_now = truth["humans"].col("fatigue")
+        true_ahead = individual(hours + 1.0, onset, slope, FLOOR)
+        errors[ctx.epoch] = [np.abs(x - t)[chosen].mean() for x, t in (
+            (now, true_now), (prior.at(hours), true_now),
+            (belief.at(hours + 1.0), true_ahead), (prior.at(hours + 1.0), true_ahead))]
+    assert chosen.sum() >= 30
+    first, last = errors[1], errors[max(errors)]
+    now, prior_now, ahead, prior_ahead = zip(first, last)
+    assert now[1] < 0.8 * now[0] and prior_now[1] > prior_now[0], (now, prior_now)
+    assert ahead[1] < 0.9 * ahead[0] and prior_ahead[1] > 0.9 * prior_ahead[0], \
+        (ahead, prior_ahead)
+    assert now[1] < 0.75 * prior_now[1] and ahead[1] < 0.9 * prior_ahead[1]
+
+
+def test_with_no_spread_in_the_simulator_the_filter_returns_the_truth():
+    for ctx, truth, onset, slope in run_truth(["mission.uncertainty='high'",
+                                               "human.fatigue_spread=0"], 4):
+        assert ctx.reconstructed["fatigue_weight"].shape[-1] == 1
+        assert np.array_equal(fatigue_now(ctx.reconstructed), truth["humans"].col("fatigue"))
