@@ -123,8 +123,8 @@ class FilterReconstructor:
                         out: dict[str, np.ndarray]) -> None:
         humans = obs["humans"]
         batch, count = humans.features.shape[:2]
-        if sim.epoch == 0 or self.log_weight is None or self.log_weight.shape[:2] != (batch,
-                                                                                    count):
+        unknown = self.log_weight is None or self.log_weight.shape[:2] != (batch, count)
+        if sim.epoch == 0 or unknown:
             self._reset(sim, batch, count)
         hours = humans.col("working_time")
         curves = individual(hours[..., None], self.onset, self.slope, self.floor)  # (B, H, K)
