@@ -253,25 +253,25 @@ class Decoder:
         depart = np.maximum(self.robot_free[e, r_ff], hf[e, hn])[ce]
         leg_nav = travel[c, rf] / tables.SKILL_SPEED[2] + self.capture_s
         arr_nav = np.where(has_nav, depart + leg_nav, np.inf)
-        # greedy's prior: the rate of net points per robot second, both options
-        rates, hum_best = [], []
-        for arr_o, q_o, cost in ((arr_ff, q_auto, 0.0), (arr_nav, q_nav, s.human_time_cost
-                                                           * leg_nav)):
-            at = np.minimum(arr_o, 1e12)[:, None]
-            hum_net = self._best_net(*self._greedy_net(q_o[:, None], d[:, None], pts[:, None],
-                                                       at, t_ff, rows=ce))[:, 0]
-            ev_on = tables.expected_points(pts, tables.P_RC[q_o, d])
-            value = np.maximum(hum_net, ev_on) - cost
-            with np.errstate(invalid="ignore"):
-                rate = value / (arr_o - t_ff + s.rate_offset_s)
-            rates.append(np.where(arr_o <= self.horizon, rate, -np.inf))
-            # the learned features: the best human with workload and fatigue projected
-            p_h, fin_h, _, _, _, _ = self.load.classification(q_o[:, None], d[:, None], at,
-                                                              rows=ce)
-            ev_h = np.where(fin_h <= self.horizon,
-                            tables.expected_points(pts[:, None, None], p_h), -np.inf)
-            hum_best.append(np.maximum(ev_h.max(-1)[:, 0], -35.0))
-        rate_ff = np.maximum(rates[0], rates[1])
+        # greedy's prior: the rate of net points per robot second, for both options at once
+        # (the last axis: autonomous, navigated)
+        arr_o = np.stack([arr_ff, arr_nav], 1)                              # (n, 2)
+        q_o = np.stack([q_auto, q_nav], 1)
+        cost = np.stack([np.zeros_like(leg_nav), s.human_time_cost * leg_nav], 1)
+        at = np.minimum(arr_o, 1e12)
+        hum_net = self._best_net(*self._greedy_net(q_o, d[:, None], pts[:, None], at, t_ff,
+                                                   rows=ce))
+        ev_on = np.stack([ev_auto, ev_navq], 1)
+        value = np.maximum(hum_net, ev_on) - cost
+        with np.errstate(invalid="ignore"):
+            rate = value / (arr_o - t_ff[:, None] + s.rate_offset_s)
+        rates = np.where(arr_o <= self.horizon, rate, -np.inf)
+        # the learned features: the best human with workload and fatigue projected
+        p_h, fin_h, _, _, _, _ = self.load.classification(q_o, d[:, None], at, rows=ce)
+        ev_h = np.where(fin_h <= self.horizon,
+                        tables.expected_points(pts[:, None, None], p_h), -np.inf)
+        hum_best = np.maximum(ev_h.max(-1), -35.0)
+        rate_ff = np.maximum(rates[:, 0], rates[:, 1])
         prior[ce, cp] = np.where(np.isfinite(rate_ff), rate_ff, -1.0)
         # competition: how much sooner, and how much better onboard, another robot gets there
         others = reach
@@ -288,9 +288,10 @@ class Decoder:
         feats[ce, cp] = np.concatenate([
             np.stack([np.clip((arr_ff - self.now) / hz, 0, 2),
                       np.clip((arr_nav - self.now) / hz, 0, 2),
-                      ev_auto / 35.0, ev_navq / 35.0, hum_best[0] / 35.0, hum_best[1] / 35.0,
-                      np.clip(np.where(np.isfinite(rates[0]), rates[0], -0.1) * 20, -2, 2),
-                      np.clip(np.where(np.isfinite(rates[1]), rates[1], -0.1) * 20, -2, 2),
+                      ev_auto / 35.0, ev_navq / 35.0, hum_best[:, 0] / 35.0,
+                      hum_best[:, 1] / 35.0,
+                      np.clip(np.where(np.isfinite(rates[:, 0]), rates[:, 0], -0.1) * 20, -2, 2),
+                      np.clip(np.where(np.isfinite(rates[:, 1]), rates[:, 1], -0.1) * 20, -2, 2),
                       np.clip((other_arr - arr_ff) / hz, -2, 2),
                       (ev_all - ev_auto) / 35.0,
                       pts / 35.0, kind.astype(float), d / 2.0,
