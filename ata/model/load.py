@@ -62,8 +62,9 @@ class HumanLoad:
         flat = self.cum.reshape(-1)
         plans = np.arange(E) if rows is None else rows
         base = ((plans[:, None] * H + np.arange(H)[None, :]) * G)[:, None, :]
-        lo = flat.take(base + k)
-        return lo + frac * (flat.take(base + k + 1) - lo)
+        at = base + k
+        lo = flat.take(at)
+        return lo + frac * (flat.take(at + 1) - lo)
 
     def utilisation_at(self, t: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         """Projected busy share of [t - window, t] of every human, t (E, N, H); `rows` as in
