@@ -131,9 +131,10 @@ class StepScorer(nn.Module):
                       legal: torch.Tensor) -> torch.Tensor:
         """The last hidden layer (E, N, h) at the legal candidates, zero elsewhere. Each row of
         a matrix product on CPU comes out the same whatever the number of rows from 3 on (not
-        for 1 or 2: another kernel), so the legal rows are padded to at least 3 with copies of
-        the first (tests/test_ata_hrl.py checks that the logits do not change). The output
-        layer runs on the whole (E, N, h), as without `legal`, so that it too is the same."""
+        at 1 or 2 rows), so the legal rows are padded to at least 3 with copies of the first
+        (tests/test_ata_hrl.py checks that the logits do not change). The output layer, of one
+        unit, gives a row a result that depends on the matrix's shape: it runs on the whole
+        (E, N, h), as without `legal`."""
         E, N, F = feats.shape
         h = cand_h.shape[-1]
         full = feats.new_zeros(E * N, h)
