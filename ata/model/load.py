@@ -49,48 +49,55 @@ class HumanLoad:
             self._fatigue = self.start.belief.at(self.start.hours + self.booked / 3600.0)
         return self._fatigue
 
-    def _cum_at(self, t: np.ndarray) -> np.ndarray:
-        """Cumulative busy seconds of every human by times t (E, N, H) (linear within a bin)."""
+    def _cum_at(self, t: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        """Cumulative busy seconds of every human by times t (E, N, H) (linear within a bin);
+        `rows`: the plan of each row of t (default: row i is plan i)."""
         G = self.edges.size
         x = np.clip(t, 0.0, self.edges[-1]) / BIN_S
         k = np.minimum(x.astype(np.int64), G - 2)
         frac = x - k
         E, H = self.free.shape
         flat = self.cum.reshape(-1)
-        base = ((np.arange(E)[:, None] * H + np.arange(H)[None, :]) * G)[:, None, :]
-        lo = flat.take(base + k)
-        return lo + frac * (flat.take(base + k + 1) - lo)
+        plans = np.arange(E) if rows is None else rows
+        base = ((plans[:, None] * H + np.arange(H)[None, :]) * G)[:, None, :]
+        at = base + k
+        lo = flat.take(at)
+        return lo + frac * (flat.take(at + 1) - lo)
 
-    def utilisation_at(self, t: np.ndarray) -> np.ndarray:
-        """Projected busy share of [t - window, t] of every human, t (E, N, H)."""
+    def utilisation_at(self, t: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        """Projected busy share of [t - window, t] of every human, t (E, N, H); `rows` as in
+        `classification`."""
         w = self.window_s
-        busy = self._cum_at(t) - self._cum_at(t - w)
+        busy = self._cum_at(t, rows) - self._cum_at(t - w, rows)
         span = np.minimum(w, np.maximum(t, 1e-9))
         return np.clip(busy / span, 0.0, 1.0)
 
     def classification(self, q: np.ndarray, d: np.ndarray, arrive: np.ndarray,
-                       greedy: bool = False) -> tuple[np.ndarray, ...]:
+                       greedy: bool = False, rows: np.ndarray | None = None
+                       ) -> tuple[np.ndarray, ...]:
         """For every human, classifying an image of quality q and difficulty d captured at
         `arrive` (each (E, N)): (success probability, finish, begin, utilisation, F_w, F_f),
         each (E, N, H). greedy: as the greedy planner projects it (F_w = 1, utilisation and
         F_w None, F_f the belief at the working hours now plus the time until the human is
-        free)."""
+        free). `rows` (E,): the plan of each row of q, d and arrive, for a caller that asks
+        about some (plan, POI) pairs only (default: row i is plan i)."""
         start = self.start
-        begin = np.maximum(arrive[..., None], self.free[:, None, :])
+        sel = slice(None) if rows is None else rows
+        begin = np.maximum(arrive[..., None], self.free[sel][:, None, :])
         finish = begin + tables.T_BAR[q, d][..., None]
         f_d = tables.F_D[q, d][..., None]
         if greedy:
             if self._fatigue_greedy is None:
                 self._fatigue_greedy = start.belief.at(
                     start.hours + np.maximum(self.free - start.now, 0) / 3600.0)[:, None, :]
-            f_f = self._fatigue_greedy
+            f_f = self._fatigue_greedy[sel]
             f_w = u = None
-            p = 0.5 + self._eta_lam * f_f * f_d
+            p = 0.5 + self._eta_lam[sel] * f_f * f_d
         else:
-            f_f = self.fatigue_at()[:, None, :]
-            u = self.utilisation_at(begin)
+            f_f = self.fatigue_at()[sel][:, None, :]
+            u = self.utilisation_at(begin, rows)
             f_w = tables.workload(u)
-            p = 0.5 + self._eta_lam * f_f * f_w * f_d
+            p = 0.5 + self._eta_lam[sel] * f_f * f_w * f_d
         return p, finish, begin, u, f_w, f_f
 
     def book(self, e: np.ndarray, h: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:

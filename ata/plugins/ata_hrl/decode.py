@@ -119,7 +119,12 @@ def decode(dec: Decoder, net: AllocationNet, emb: dict[str, torch.Tensor], choos
             cand, hid = cands[kind], cand_hidden[kind]
             if n != cand.shape[1]:
                 cand, hid = cand[:, :n], None
-            logits = net.scorers[kind](feats, cand, ctx, prior, m, residual, cand_hidden=hid)
+            # the POI step scores the legal POIs' hidden layers alone (a few of all P by the
+            # end of a decode); the other steps have few candidates
+            legal = torch.from_numpy(np.flatnonzero(mask)) if kind == "poi" and residual \
+                else None
+            logits = net.scorers[kind](feats, cand, ctx, prior, m, residual, cand_hidden=hid,
+                                       legal=legal)
             choice = choose(kind, logits)
             if trace is not None:
                 trace.add(kind, inp, mask, choice, active, robot, task)

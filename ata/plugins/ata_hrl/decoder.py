@@ -110,7 +110,6 @@ class Decoder:
         self.load = HumanLoad(start, fatigue_now, util_now, s.window_s)
         self.human_free = self.load.free          # the load's array, updated in place
         self.capture_s = start.capture_s
-        self._cache: tuple | None = None
         self.touched = np.zeros((E, H), bool)
         # static per decode
         self.high = start.skill == 2
@@ -152,29 +151,25 @@ class Decoder:
     # -- projections -----------------------------------------------------------------------------
     def _book(self, e: np.ndarray, h: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
         self.load.book(e, h, a, b)
-        self._cache = None
 
-    def _legs(self, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Travel seconds (E, R, P) at autonomous speed from each robot's position, and
-        autonomous arrival times (cached until the next commit)."""
-        if self._cache is None:
-            self._cache = self._legs_now(e)
-        return self._cache
-
-    def _legs_now(self, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        gx = self.tx[e][:, None, :] - self.robot_xy[e, :, 0][..., None]
-        gy = self.ty[e][:, None, :] - self.robot_xy[e, :, 1][..., None]
-        travel = np.sqrt(gx * gx + gy * gy) / np.maximum(self.start.speed[e], 1e-9)[..., None]
-        return travel, self.robot_free[e][..., None] + travel + self.capture_s
+    def _legs_to(self, e: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Travel seconds (n, R) at autonomous speed from each robot's position to POI p of
+        plan e (each (n,)), and the autonomous arrival times."""
+        gx = self.tx[e, p][:, None] - self.robot_xy[e, :, 0]
+        gy = self.ty[e, p][:, None] - self.robot_xy[e, :, 1]
+        travel = np.sqrt(gx * gx + gy * gy) / np.maximum(self.start.speed[e], 1e-9)
+        return travel, self.robot_free[e] + travel + self.capture_s
 
     def _greedy_net(self, q: np.ndarray, d: np.ndarray, pts: np.ndarray, arrive: np.ndarray,
-                    t_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                    t_ref: np.ndarray, rows: np.ndarray | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
         """Greedy's net value of each human classifying an image of quality q and difficulty d
         captured at `arrive` (each (E, N)), worth `pts`: its expected points less the price of
         the human's time (the item, and its wait from `t_ref` (E,)); with the finish times.
-        Both (E, N, H)."""
-        p_g, fin_g, _, _, _, _ = self.load.classification(q, d, arrive, greedy=True)
-        delay = np.maximum(self.human_free[:, None, :] - t_ref[:, None, None], 0.0)
+        Both (E, N, H). `rows`: the plan of each row (`HumanLoad.classification`)."""
+        p_g, fin_g, _, _, _, _ = self.load.classification(q, d, arrive, greedy=True, rows=rows)
+        free = self.human_free if rows is None else self.human_free[rows]
+        delay = np.maximum(free[:, None, :] - t_ref[:, None, None], 0.0)
         net = (tables.expected_points(pts[..., None], p_g)
                - self.s.human_time_cost * (tables.T_BAR[q, d][..., None] + delay))
         return net, fin_g
@@ -224,81 +219,91 @@ class Decoder:
 
     @_quiet
     def poi_inputs(self) -> StepInputs:
-        """Which POI next: features relative to the robot free first (the greedy robot)."""
+        """Which POI next: features relative to the robot free first (the greedy robot). They
+        are computed for the legal (episode, POI) pairs alone, those left that some robot
+        reaches by the horizon: the others' logits are masked, and their features are zero."""
         E, P, s, e = self.E, self.P, self.s, self.e
         free = np.where(self.robot_done, np.inf, self.robot_free)
         r_ff = free.argmin(axis=1)
-        travel, arr = self._legs(e)                                         # (E, R, P)
-        reach = (arr <= self.horizon) & ~self.robot_done[..., None]
-        mask = self.left & reach.any(axis=1)
-        active = mask.any(axis=1)
         self.r_ff = r_ff
-        t_ff = self.robot_free[e, r_ff]
-        arr_ff = arr[e, r_ff]                                               # (E, P)
-        rtype = self.start.robot_type[e, r_ff]
-        d = self.start.diff
-        q_auto = tables.QUALITY[rtype[:, None], self.start.kind, 1]
-        q_nav = tables.QUALITY[rtype[:, None], self.start.kind, 2]
-        ev_auto = tables.expected_points(self.points, tables.P_RC[q_auto, d])
-        ev_navq = tables.expected_points(self.points, tables.P_RC[q_nav, d])
+        lb, lp = np.nonzero(self.left)
+        travel, arr = self._legs_to(lb, lp)                                 # (n, R)
+        reach = (arr <= self.horizon) & ~self.robot_done[lb]
+        ok = reach.any(axis=1)
+        ce, cp, travel, arr, reach = lb[ok], lp[ok], travel[ok], arr[ok], reach[ok]
+        mask = np.zeros((E, P), bool)
+        mask[ce, cp] = True
+        feats = np.zeros((E, P, POI_FEATURES), np.float32)
+        prior = np.full((E, P), -1.0)
+        if ce.size == 0:
+            return StepInputs(feats, mask, prior, mask.any(axis=1))
+        c, rf = np.arange(ce.size), r_ff[ce]
+        t_ff = self.robot_free[e, r_ff][ce]
+        arr_ff = arr[c, rf]
+        rtype = self.start.robot_type[ce, rf]
+        kind, d, pts = self.start.kind[ce, cp], self.start.diff[ce, cp], self.points[ce, cp]
+        q_auto = tables.QUALITY[rtype, kind, 1]
+        q_nav = tables.QUALITY[rtype, kind, 2]
+        ev_auto = tables.expected_points(pts, tables.P_RC[q_auto, d])
+        ev_navq = tables.expected_points(pts, tables.P_RC[q_nav, d])
         # the first free highly skilled navigator, as greedy
         hf = np.where(self.high, self.human_free, np.inf)
         hn = hf.argmin(axis=1)
-        has_nav = np.isfinite(hf[e, hn])
-        depart = np.maximum(t_ff, hf[e, hn])[:, None]
-        leg_nav = travel[e, r_ff] / tables.SKILL_SPEED[2] + self.capture_s
-        arr_nav = np.where(has_nav[:, None], depart + leg_nav, np.inf)
-        # greedy's prior: the rate of net points per robot second, both options
-        rates, hum_best = [], []
-        for arr_o, q_o, cost in ((arr_ff, q_auto, 0.0), (arr_nav, q_nav, s.human_time_cost
-                                                           * leg_nav)):
-            hum_net = self._best_net(*self._greedy_net(q_o, d, self.points,
-                                                       np.minimum(arr_o, 1e12), t_ff))
-            ev_on = tables.expected_points(self.points, tables.P_RC[q_o, d])
-            value = np.maximum(hum_net, ev_on) - cost
-            with np.errstate(invalid="ignore"):
-                rate = value / (arr_o - t_ff[:, None] + s.rate_offset_s)
-            rates.append(np.where(arr_o <= self.horizon, rate, -np.inf))
-            # the learned features: the best human with workload and fatigue projected
-            p_h, fin_h, _, _, _, _ = self.load.classification(q_o, d, np.minimum(arr_o, 1e12))
-            ev_h = np.where(fin_h <= self.horizon,
-                            tables.expected_points(self.points[..., None], p_h), -np.inf)
-            hum_best.append(np.maximum(ev_h.max(-1), -35.0))
-        rate_ff = np.maximum(rates[0], rates[1])
-        prior = np.where(np.isfinite(rate_ff), rate_ff, -1.0)
+        has_nav = np.isfinite(hf[e, hn])[ce]
+        depart = np.maximum(self.robot_free[e, r_ff], hf[e, hn])[ce]
+        leg_nav = travel[c, rf] / tables.SKILL_SPEED[2] + self.capture_s
+        arr_nav = np.where(has_nav, depart + leg_nav, np.inf)
+        # greedy's prior: the rate of net points per robot second, for both options at once
+        # (the last axis: autonomous, navigated)
+        arr_o = np.stack([arr_ff, arr_nav], 1)                              # (n, 2)
+        q_o = np.stack([q_auto, q_nav], 1)
+        cost = np.stack([np.zeros_like(leg_nav), s.human_time_cost * leg_nav], 1)
+        at = np.minimum(arr_o, 1e12)
+        hum_net = self._best_net(*self._greedy_net(q_o, d[:, None], pts[:, None], at, t_ff,
+                                                   rows=ce))
+        ev_on = np.stack([ev_auto, ev_navq], 1)
+        value = np.maximum(hum_net, ev_on) - cost
+        with np.errstate(invalid="ignore"):
+            rate = value / (arr_o - t_ff[:, None] + s.rate_offset_s)
+        rates = np.where(arr_o <= self.horizon, rate, -np.inf)
+        # the learned features: the best human with workload and fatigue projected
+        p_h, fin_h, _, _, _, _ = self.load.classification(q_o, d[:, None], at, rows=ce)
+        ev_h = np.where(fin_h <= self.horizon,
+                        tables.expected_points(pts[:, None, None], p_h), -np.inf)
+        hum_best = np.maximum(ev_h.max(-1), -35.0)
+        rate_ff = np.maximum(rates[:, 0], rates[:, 1])
+        prior[ce, cp] = np.where(np.isfinite(rate_ff), rate_ff, -1.0)
         # competition: how much sooner, and how much better onboard, another robot gets there
-        others = reach.copy()
-        others[e, r_ff] = False
+        others = reach
+        others[c, rf] = False
         other_arr = np.where(others, arr, np.inf).min(axis=1)
-        ev_all = np.where(others, self._ev_onboard, -35.0).max(axis=1)
+        ev_all = np.where(others, self._ev_onboard[ce, :, cp], -35.0).max(axis=1)
         hz = self.horizon
-        left_share = self.left.sum(1, keepdims=True) / max(P, 1)
-        prev_feats = np.zeros((E, P, 3))
+        left_share = self.left.sum(1)[ce] / max(P, 1)
+        prev_feats = np.zeros((ce.size, 3))
         if self.previous is not None:
-            prev_feats[..., 0] = self.previous.robot == r_ff[:, None]
-            prev_feats[..., 1] = self.prev_valid
-            prev_feats[..., 2] = self.previous.classifier >= 0
-        feats = np.concatenate([
+            prev_feats[:, 0] = self.previous.robot[ce, cp] == rf
+            prev_feats[:, 1] = self.prev_valid[ce, cp]
+            prev_feats[:, 2] = self.previous.classifier[ce, cp] >= 0
+        feats[ce, cp] = np.concatenate([
             np.stack([np.clip((arr_ff - self.now) / hz, 0, 2),
                       np.clip((arr_nav - self.now) / hz, 0, 2),
-                      ev_auto / 35.0, ev_navq / 35.0, hum_best[0] / 35.0, hum_best[1] / 35.0,
-                      np.clip(np.where(np.isfinite(rates[0]), rates[0], -0.1) * 20, -2, 2),
-                      np.clip(np.where(np.isfinite(rates[1]), rates[1], -0.1) * 20, -2, 2),
+                      ev_auto / 35.0, ev_navq / 35.0, hum_best[:, 0] / 35.0,
+                      hum_best[:, 1] / 35.0,
+                      np.clip(np.where(np.isfinite(rates[:, 0]), rates[:, 0], -0.1) * 20, -2, 2),
+                      np.clip(np.where(np.isfinite(rates[:, 1]), rates[:, 1], -0.1) * 20, -2, 2),
                       np.clip((other_arr - arr_ff) / hz, -2, 2),
                       (ev_all - ev_auto) / 35.0,
-                      self.points / 35.0, self.start.kind.astype(float),
-                      self.start.diff / 2.0,
-                      np.broadcast_to(np.clip((hz - t_ff) / hz, 0, 1)[:, None], (E, P)),
-                      np.broadcast_to(left_share, (E, P))], -1),
+                      pts / 35.0, kind.astype(float), d / 2.0,
+                      np.clip((hz - t_ff) / hz, 0, 1), left_share], -1),
             prev_feats], -1)
-        return StepInputs(feats.astype(np.float32), mask, prior, active)
+        return StepInputs(feats, mask, prior, mask.any(axis=1))
 
     @_quiet
     def robot_inputs(self, p: np.ndarray) -> StepInputs:
         """Which robot for POI p."""
         E, R, e = self.E, self.R, self.e
-        travel, arr = self._legs(e)
-        arr_p = arr[e, :, p]                                                # (E, R)
+        travel_p, arr_p = self._legs_to(e, p)                               # (E, R)
         mask = ~self.robot_done & (arr_p <= self.horizon)
         q = tables.QUALITY[self.start.robot_type, self.start.kind[e, p][:, None], 1]
         d = self.start.diff[e, p][:, None]
@@ -312,7 +317,7 @@ class Decoder:
             np.stack([np.clip((arr_p - self.now) / hz, 0, 2),
                       np.clip((np.where(self.robot_done, hz, self.robot_free) - self.now) / hz,
                               0, 2),
-                      travel[e, :, p] / hz, ev / 35.0, is_ff.astype(float),
+                      travel_p / hz, ev / 35.0, is_ff.astype(float),
                       self.n_assigned / max(self.P, 1), prev_r,
                       self.start.robot_type.astype(float)], -1),
             np.eye(4)[q]], -1)
@@ -323,8 +328,7 @@ class Decoder:
     def nav_inputs(self, p: np.ndarray, r: np.ndarray) -> StepInputs:
         """Who drives robot r to POI p: autonomous, or one highly skilled human (index h + 1)."""
         E, H, s, e = self.E, self.H, self.s, self.e
-        travel, _ = self._legs(e)
-        tr = travel[e, r, p]                                                 # (E,)
+        tr = self._legs_to(e, p)[0][e, r]                                   # (E,)
         t_r = self.robot_free[e, r]
         rtype = self.start.robot_type[e, r]
         kind, d = self.start.kind[e, p], self.start.diff[e, p]
@@ -446,7 +450,6 @@ class Decoder:
         self.n_assigned[e, r] += 1
         self.robot[e, p], self.nav[e, p], self.cls[e, p] = r, n, c
         self.left[e, p] = False
-        self._cache = None
 
     def _charge(self, e, p, n, c) -> None:
         """Re-brief (in the projection) every human this choice first changes the work of."""

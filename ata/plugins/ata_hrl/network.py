@@ -86,6 +86,10 @@ class Encoder(nn.Module):
         return dict(zip(GROUPS, torch.split(out, sizes, dim=1)))
 
 
+MIN_ROWS = 3
+"""Fewest rows a `StepScorer` with `legal` candidates multiplies at once (`_legal_hidden`)."""
+
+
 class StepScorer(nn.Module):
     """Logits of one sub-decision: MLP(features, candidate, context) + scale * prior."""
 
@@ -104,16 +108,48 @@ class StepScorer(nn.Module):
 
     def forward(self, feats: torch.Tensor, cand: torch.Tensor, ctx: torch.Tensor,
                 prior: torch.Tensor, mask: torch.Tensor, residual: bool = True,
-                cand_hidden: torch.Tensor | None = None) -> torch.Tensor:
+                cand_hidden: torch.Tensor | None = None,
+                legal: torch.Tensor | None = None) -> torch.Tensor:
         """feats (..., N, F), cand (..., N, d), ctx (..., d), prior and mask (..., N).
         `cand_hidden`: ``self.cand(cand)`` computed once by a caller that scores the same
-        candidates step after step (the decoder), the same tensor, so the same logits."""
+        candidates step after step (the decoder), the same tensor, so the same logits.
+        `legal`: (E, N) inputs only: the flat indices (e * N + n) of the legal candidates
+        (those `mask` allows), for a caller with few of them; the hidden layers are computed
+        for those alone, the others' logits being masked (the same logits: see
+        `_legal_hidden`)."""
         logit = self.log_scale.exp() * prior
         if residual:
-            hid = (self.feat(feats) + (self.cand(cand) if cand_hidden is None else cand_hidden)
-                   + self.ctx(ctx)[..., None, :])
-            logit = logit + self.out(hid)[..., 0] + self.linear(feats)[..., 0]
+            cand_h = self.cand(cand) if cand_hidden is None else cand_hidden
+            if legal is None:
+                hid = self._hidden(self.feat(feats) + cand_h + self.ctx(ctx)[..., None, :])
+            else:
+                hid = self._legal_hidden(feats, cand_h, ctx, legal)
+            logit = logit + self.out[3](hid)[..., 0] + self.linear(feats)[..., 0]
         return logit.masked_fill(~mask, NEG)
+
+    def _legal_hidden(self, feats: torch.Tensor, cand_h: torch.Tensor, ctx: torch.Tensor,
+                      legal: torch.Tensor) -> torch.Tensor:
+        """The last hidden layer (E, N, h) at the legal candidates, zero elsewhere. Each row of
+        a matrix product on CPU comes out the same whatever the number of rows from 3 on (not
+        at 1 or 2 rows), so the legal rows are padded to at least 3 with copies of the first
+        (tests/test_ata_hrl.py checks that the logits do not change). The output layer, of one
+        unit, gives a row a result that depends on the matrix's shape: it runs on the whole
+        (E, N, h), as without `legal`."""
+        E, N, F = feats.shape
+        h = cand_h.shape[-1]
+        full = feats.new_zeros(E * N, h)
+        k = legal.shape[0]
+        if k:
+            rows = legal if k >= MIN_ROWS else torch.cat([legal, legal[:1].expand(MIN_ROWS - k)])
+            hid = (self.feat(feats.reshape(E * N, F).index_select(0, rows))
+                   + cand_h.reshape(E * N, h).index_select(0, rows)
+                   + self.ctx(ctx).index_select(0, rows // N))
+            full.index_copy_(0, legal, self._hidden(hid)[:k])
+        return full.reshape(E, N, h)
+
+    def _hidden(self, x: torch.Tensor) -> torch.Tensor:
+        """`out` but its output layer: activation, hidden layer, activation."""
+        return self.out[2](self.out[1](self.out[0](x)))
 
 
 class KeepScorer(nn.Module):
