@@ -254,3 +254,29 @@ def test_with_no_spread_in_the_simulator_the_filter_returns_the_truth():
                                                "human.fatigue_spread=0"], 4):
         assert ctx.reconstructed["fatigue_weight"].shape[-1] == 1
         assert np.array_equal(fatigue_now(ctx.reconstructed), truth["humans"].col("fatigue"))
+
+
+def test_without_observations_the_belief_is_the_prior():
+    """observe = false: the weights stay uniform over the grid whatever the observations."""
+    def make(observe):
+        return FilterReconstructor(FilterReconstructor.Settings(
+            onsets=3, slopes=3, variance=0.1, observe=observe), mission=None)
+
+    class View:
+        epoch = 0
+
+        def published(self, kind):
+            return kind()
+
+    obs = Observation()
+    obs.add("humans", ("working_time", "fatigue", "idleness", "sa"),
+            np.array([[[1.4, 0.2, 0.5, 1.0], [0.2, 1.0, 0.5, 1.0]]]))
+    prior: dict = {}
+    make(False).ata_reconstruct(sim=View(), obs=obs, inherent=Observation(), out=prior)
+    assert np.allclose(prior["fatigue_weight"], 1 / 9, rtol=0, atol=1e-15)
+    seen: dict = {}
+    make(True).ata_reconstruct(sim=View(), obs=obs, inherent=Observation(), out=seen)
+    # the first human, past some onsets and observed tired, moves the weights; the second,
+    # before every onset, teaches nothing
+    assert np.ptp(seen["fatigue_weight"][0, 0]) > 0.1
+    assert np.allclose(seen["fatigue_weight"][0, 1], 1 / 9, rtol=0, atol=1e-15)

@@ -96,6 +96,8 @@ class FilterReconstructor:
                                    help="least noise standard deviation it assumes, so that "
                                         "an exact observation keeps the curves within a few "
                                         "of this of it")
+        observe: bool = param(True, help="weigh the fatigue observations (false: the prior "
+                                         "alone, a yardstick of what the observations add)")
 
     def __init__(self, settings: "FilterReconstructor.Settings", mission):
         self.settings = settings
@@ -129,7 +131,8 @@ class FilterReconstructor:
         hours = humans.col("working_time")
         curves = individual(hours[..., None], self.onset, self.slope, self.floor)  # (B, H, K)
         miss = humans.col("fatigue")[..., None] - curves
-        log_w = self.log_weight - 0.5 * miss * miss / self.variance
+        log_w = self.log_weight - (0.5 * miss * miss / self.variance
+                                   if self.settings.observe else 0.0)
         top = log_w.max(-1, keepdims=True)
         # normalised in the log domain, so that weights never underflow over the epochs
         log_w -= top + np.log(np.exp(log_w - top).sum(-1, keepdims=True))
