@@ -231,6 +231,7 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
                            for i in range(len(combos))], axis=1)                # (B, 4, P)
     tbar_task = np.stack([t_bar[qd_base[:, i]] for i in range(len(combos))], axis=1)
     n_opt = 2 if (s.human_navigators and H > 0) else 1
+    options = np.arange(n_opt)
 
     # The loop works on the scenarios still planning (`rows`) and, in each, on its tasks still
     # open (`cols`, (A, C), open ones first in task order): a finished scenario changes nothing
@@ -257,10 +258,10 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
             order = np.argsort(~remaining[keep], axis=1, kind="stable")[:, :width]
             per_row = [x[keep] for x in (robot_free, human_free, hours, eta, lam, high, speed,
                                          r_type, rx, ry, n_left)]
-            per_task = [np.take_along_axis(x[keep], order, axis=1)
-                        for x in (remaining, cols, tx, ty)]
-            per_combo = [np.take_along_axis(x[keep], order[:, None, :], axis=2)
-                         for x in (qd_base, ev_onboard, tbar_task)]
+            at = (keep * C)[:, None] + order                  # flat positions of what stays
+            per_task = [x.ravel()[at] for x in (remaining, cols, tx, ty)]
+            at = (keep * 4 * C)[:, None, None] + (np.arange(4) * C)[:, None] + order[:, None, :]
+            per_combo = [x.ravel()[at] for x in (qd_base, ev_onboard, tbar_task)]
             rows = rows[keep]
             (robot_free, human_free, hours, eta, lam, high, speed, r_type, rx, ry,
              n_left) = per_row
@@ -303,29 +304,32 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
         best_free = human_free.ravel()[best_c + row_h].ravel()
 
         # option 0: the robot drives itself; option 1: the first free highly skilled human
-        # navigates (faster, one quality level up, the human busy for the leg)
-        arrivals = [t_free[:, None] + dist / v + capture_s]
-        nav_costs = [0.0]
+        # navigates (faster, one quality level up, the human busy for the leg); both options
+        # at once, (A, O, C)
+        arrival = np.empty((A, n_opt, C))
+        np.divide(dist, v, out=arrival[:, 0])
+        arrival[:, 0] += t_free[:, None]
+        arrival[:, 0] += capture_s
         if n_opt == 2:
             hf = np.where(high, human_free, np.inf)
             hn = hf.argmin(axis=1)
             start = np.maximum(t_free, hf[b_all, hn])[:, None]
-            leg = dist / (v * tables.SKILL_SPEED[2]) + capture_s
-            arrivals.append(start + leg)          # inf where no highly skilled human exists
-            nav_costs.append(s.human_time_cost * leg)
-        scores = []
-        for o in range(n_opt):
-            arr = arrivals[o]
-            combo = combo0 + o
-            qd = qd_flat[b_all, combo]
-            ev_on = ev_onboard[b_all, combo]
-            finish = np.maximum(arr, best_free[qd]) + tbar_task[b_all, combo]
-            hum_net = np.where(finish <= horizon, best_net[qd], 0.0)
-            value = np.maximum(hum_net, ev_on) - nav_costs[o]
-            with np.errstate(invalid="ignore"):   # inf - inf for robots that are done
-                rate = value / (arr - t_free[:, None] + s.rate_offset_s)
-            scores.append(np.where(remaining & (arr <= horizon), rate, -np.inf))
-        score = np.concatenate(scores, axis=1)                                 # (A, O * C)
+            leg = arrival[:, 1]
+            np.divide(dist, v * tables.SKILL_SPEED[2], out=leg)
+            leg += capture_s
+            nav_cost = s.human_time_cost * leg
+            leg += start                          # inf where no highly skilled human exists
+        combo = combo0[:, None] + options                                      # (A, O)
+        qd = qd_flat[b_all[:, None], combo]
+        finish = np.maximum(arrival, best_free[qd]) + tbar_task[b_all[:, None], combo]
+        value = np.maximum(np.where(finish <= horizon, best_net[qd], 0.0),
+                           ev_onboard[b_all[:, None], combo])
+        if n_opt == 2:
+            value[:, 1] -= nav_cost
+        with np.errstate(invalid="ignore"):       # inf - inf for robots that are done
+            rate = value / (arrival - t_free[:, None, None] + s.rate_offset_s)
+        score = np.where(remaining[:, None, :] & (arrival <= horizon), rate,
+                         -np.inf).reshape(A, -1)                                # (A, O * C)
         flat = score.argmax(axis=1)
         o_star, p_star = np.divmod(flat, C)
         ok = active & np.isfinite(score[b_all, flat])
@@ -338,7 +342,7 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
         combo = combo0[b] + o_b
         qd = qd_flat[b, combo, p]
         qq = (qd - row12[b, 0]) // 3
-        arr = np.where(o_b == 0, arrivals[0][b, p], arrivals[-1][b, p])
+        arr = arrival[b, o_b, p]
         c = best_c.ravel()[qd]
         finish = np.maximum(arr, best_free[qd]) + tbar_task[b, combo, p]
         # a human classifier also when none can finish in time but onboard expects a loss:
