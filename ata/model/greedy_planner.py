@@ -135,8 +135,10 @@ def _human_gain(skill: np.ndarray, f_d: np.ndarray, points12: np.ndarray) -> np.
 def peak_bytes(batch: int, humans: int, robots: int, tasks: int) -> int:
     """An estimate of the planner's peak working memory for a batch of `batch` scenarios, in
     bytes: linear in the POIs, its (batch, robots or humans, POIs) arrays dominate (those of
-    `ata.model.plan.project` included), its (batch, POIs) ones come next. Measured with
-    tracemalloc on the (a) team at 1040 POIs: about 1 KB per scenario and POI, under this."""
+    `ata.model.plan.project` included, which projects the candidates of a reallocation in one
+    batch of up to three plans per scenario), its (batch, POIs) ones come next. Measured with
+    tracemalloc at 1040 POIs: about 1.6 KB per scenario and POI on the (a) team (this gives
+    2.3), 1.8 KB on the (b) team (this gives 4.1)."""
     per_scenario = 16 * (robots + humans) * tasks + 64 * tasks
     return 8 * batch * per_scenario
 

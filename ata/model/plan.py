@@ -188,35 +188,13 @@ def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None
     left &= np.isfinite(np.take_along_axis(robot_free, owner, axis=1))
     b_all = np.arange(B)
     R = robot_free.shape[1]
-    # each robot's POIs to visit, in POI order, padded with -1: (B, R, K), K the most any robot
-    # has; a step measures the chosen robot's distance to these only, and argmin keeps POI
-    # order, so ties go to the same POI as over all P
-    lb, lp = np.nonzero(left)                                  # by scenario, then POI order
-    lr = owner[lb, lp]
-    count = np.zeros((B, R), dtype=np.int64)                   # POIs left per robot, kept
-    np.add.at(count, (lb, lr), 1)                              # up to date as they go
-    K = int(count.max()) if count.size else 0
-    key = lb * R + lr
-    by_robot = np.argsort(key, kind="stable")
-    slot = np.arange(lb.size) - (np.cumsum(count.ravel()) - count.ravel())[key[by_robot]]
-    mine_idx = np.full((B, R, max(K, 1)), -1, dtype=np.int64)
-    mine_idx[lb[by_robot], lr[by_robot], slot] = lp[by_robot]
-    # their positions, and whether each is still to visit, in the same layout: a step reads
-    # the chosen robot's row of each (no gather over the POIs)
-    mine = np.maximum(mine_idx, 0)
-    mine_x = start.task_xy[b_all[:, None, None], mine, 0].reshape(B * R, -1)  # (B R, K)
-    mine_y = start.task_xy[b_all[:, None, None], mine, 1].reshape(B * R, -1)
-    mine_left = (mine_idx >= 0).reshape(B * R, -1)
-    mine_idx = mine_idx.reshape(B * R, -1)
-    # what each POI's leg and classification are, by its triple, the same at every step; read
-    # through flat indices (b P + p, b R + r: 1-D takes are far cheaper than 2-D indexing)
-    navigated = alloc.navigator >= 0
-    nav_class = np.where(navigated, np.take_along_axis(start.skill, np.maximum(
-        alloc.navigator, 0), axis=1), 1)
-    speed = (np.take_along_axis(start.speed, owner, axis=1)
-             * np.where(navigated, tables.SKILL_SPEED[nav_class], 1.0)).ravel()
-    quality = tables.QUALITY[np.take_along_axis(start.robot_type, owner, axis=1), start.kind,
-                             nav_class].ravel()
+    count, mine = _robot_lists(left, owner, R)
+    mine_left = mine >= 0
+    np.maximum(mine, 0, out=mine)
+    mine += (np.arange(B) * P).repeat(R)[:, None]                       # flat: b P + p
+    task_x, task_y = start.task_xy[..., 0].ravel(), start.task_xy[..., 1].ravel()
+    # read through flat indices (b P + p, b R + r: 1-D takes are far cheaper than 2-D indexing)
+    speed, quality = _per_poi(start, alloc)
     navigator, classifier = alloc.navigator.ravel(), alloc.classifier.ravel()
     difficulty, points = start.diff.ravel(), start.points.ravel()
     robot_free_at, rx_at, ry_at = robot_free.ravel(), rx.ravel(), ry.ravel()    # views
@@ -230,13 +208,14 @@ def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None
         act = has.any(axis=1)
         b, rr = b_all[act], rs[act]
         br = b * R + rr
-        gap_x = mine_x[br] - rx_at[br][:, None]                              # (A, K)
-        gap_y = mine_y[br] - ry_at[br][:, None]
+        cand = mine[br]                                                      # (A, K)
+        gap_x = task_x[cand] - rx_at[br][:, None]
+        gap_y = task_y[cand] - ry_at[br][:, None]
         dist = np.where(mine_left[br], np.hypot(gap_x, gap_y), np.inf)
         k = dist.argmin(axis=1)
         a_all = np.arange(b.size)
-        p, d = mine_idx[br, k], dist[a_all, k]
-        bp = b * P + p
+        bp, d = cand[a_all, k], dist[a_all, k]
+        p = bp - b * P
         nav = navigator[bp]
         navigated = nav >= 0
         nav_h = np.maximum(nav, 0)
@@ -268,7 +247,7 @@ def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None
         human_free[b[hb], ch[hb]] = done[hb]
         busy[b[hb], ch[hb]] += t_bar[hb]
         robot_free_at[br] = np.where(in_time, arr, np.inf)
-        rx_at[br], ry_at[br] = mine_x[br, k], mine_y[br, k]
+        rx_at[br], ry_at[br] = task_x[bp], task_y[bp]
         mine_left[br, k] = False
         count[b, rr] -= 1
         # a robot whose next leg overruns the horizon is done
@@ -278,3 +257,36 @@ def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None
                       expected=expected, arrival=arrival, finish=finish,
                       robot_free=robot_free, robot_xy=np.stack([rx, ry], axis=-1),
                       human_free=human_free)
+
+
+def _robot_lists(left: np.ndarray, owner: np.ndarray, R: int) -> tuple[np.ndarray, np.ndarray]:
+    """The POIs left per robot (B, R), and each robot's list of them in POI order, padded with
+    -1 (B R, K), K the most any robot has: a projection step measures the chosen robot's
+    distance to these only, and argmin keeps POI order, so ties go to the same POI as over
+    all P."""
+    B = left.shape[0]
+    lb, lp = np.nonzero(left)                                  # by scenario, then POI order
+    lr = owner[lb, lp]
+    count = np.zeros((B, R), dtype=np.int64)
+    np.add.at(count, (lb, lr), 1)
+    key = lb * R + lr
+    by_robot = np.argsort(key, kind="stable")
+    slot = np.arange(lb.size) - (np.cumsum(count.ravel()) - count.ravel())[key[by_robot]]
+    mine = np.full((B * R, max(int(count.max()) if count.size else 0, 1)), -1, dtype=np.int64)
+    mine[key[by_robot], slot] = lp[by_robot]
+    return count, mine
+
+
+def _per_poi(start: PlanStart, alloc: Allocation) -> tuple[np.ndarray, np.ndarray]:
+    """What each POI's leg and classification are under `alloc`, the same at every step of a
+    projection, raveled (B P,): the robot's speed on the leg (its navigator's skill) and the
+    image quality."""
+    owner = alloc.robot
+    navigated = alloc.navigator >= 0
+    nav_class = np.where(navigated, np.take_along_axis(start.skill, np.maximum(
+        alloc.navigator, 0), axis=1), 1)
+    speed = (np.take_along_axis(start.speed, owner, axis=1)
+             * np.where(navigated, tables.SKILL_SPEED[nav_class], 1.0)).ravel()
+    quality = tables.QUALITY[np.take_along_axis(start.robot_type, owner, axis=1), start.kind,
+                             nav_class].ravel()
+    return speed, quality

@@ -92,15 +92,18 @@ def worth_many(ctx: DecisionContext, start: PlanStart, cands: Sequence[Allocatio
         plans.append(cand.take(rows))
         scenario.append(rows)
         n += rows.size
+    humans, robots = [], []
+    for plan, rows in zip(plans, scenario):
+        before = prev if rows.size == B else prev.take(rows)
+        changed = open_[rows] & ((plan.robot != before.robot) | (plan.navigator != before.navigator)
+                                 | (plan.classifier != before.classifier))
+        humans.append(retasked_humans(before, plan, changed, ctx.sizes.humans))
+        robots.append(retasked_robots(before, plan, changed, start.robot_free.shape[1]))
     at = np.concatenate(scenario)
     alloc = Allocation(*(np.concatenate([getattr(a, f) for a in plans])
                          for f in ("robot", "navigator", "classifier")))
-    base, open_at = prev.take(at), open_[at]
-    changed = open_at & ((alloc.robot != base.robot) | (alloc.navigator != base.navigator)
-                         | (alloc.classifier != base.classifier))
-    humans = retasked_humans(base, alloc, changed, ctx.sizes.humans)
-    robots = retasked_robots(base, alloc, changed, start.robot_free.shape[1])
-    proj = project(start.take(at), alloc, open_at, human_delay=humans * cost.rebrief_s,
+    humans, robots = np.concatenate(humans), np.concatenate(robots)
+    proj = project(start.take(at), alloc, open_[at], human_delay=humans * cost.rebrief_s,
                    robot_delay=robots * cost.replan_s)
     human_s = proj.human_busy_s + humans.sum(axis=1) * cost.human_seconds
     return (proj.value - human_time_cost * human_s)[slot]
