@@ -32,31 +32,35 @@ TEAMS = {"small (H/R/P 2/3/10, T 15)": str(SMALL_TEAM),
          "(a) (H/R/P 6/8/60, T 30)": str(BASELINE_MISSION)}
 
 
-def episodes_per_second(envs, rounds: int, seed: int) -> tuple[float, float]:
-    """(episodes per second, wall seconds) of `rounds` episodes in every sub-environment under
-    the random masked policy; the autoreset steps are part of the time."""
+def episodes_per_second(envs, rounds: int, seed: int) -> tuple[float, float, float]:
+    """(episodes per second, wall seconds, CPU seconds of this process) of `rounds` episodes in
+    every sub-environment under the random masked policy; the autoreset steps are part of the
+    time."""
     rng = np.random.default_rng(seed)
     nvec = envs.single_action_space.nvec
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     _, info = envs.reset(seed=seed)
     done = 0
     while done < rounds * envs.num_envs:
         _, _, terminated, _, info = envs.step(sample_masked(info["action_mask"], nvec, rng))
         done += int(terminated.sum())
     wall = time.perf_counter() - t0
-    return done / wall, wall
+    return done / wall, wall, time.process_time() - c0
 
 
 def vector_vs_single(path: str, envs: int, rounds: int, seed: int) -> dict[str, float]:
-    """Episodes per second and wall seconds of `envs` single environments under SyncVectorEnv
-    and of one vector environment of `envs`, on the team of mission `path`."""
+    """Episodes per second, wall and CPU seconds of `envs` single environments under
+    SyncVectorEnv and of one vector environment of `envs`, on the team of mission `path`; the
+    ratio of the two, by wall time and by CPU time (steadier on a shared machine)."""
     session = load_session(path)
     single = SyncVectorEnv([lambda: CentralisedEnv(session)] * envs)
     vector = CentralisedVectorEnv(session, num_envs=envs)
-    eps_single, wall_single = episodes_per_second(single, rounds, seed)
-    eps_vector, wall_vector = episodes_per_second(vector, rounds, seed)
+    eps_single, wall_single, cpu_single = episodes_per_second(single, rounds, seed)
+    eps_vector, wall_vector, cpu_vector = episodes_per_second(vector, rounds, seed)
     return {"single": eps_single, "vector": eps_vector, "ratio": eps_vector / eps_single,
-            "wall_single": wall_single, "wall_vector": wall_vector}
+            "wall_single": wall_single, "wall_vector": wall_vector,
+            "cpu_single": cpu_single, "cpu_vector": cpu_vector,
+            "cpu_ratio": cpu_single / cpu_vector}
 
 
 def main() -> None:

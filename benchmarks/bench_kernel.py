@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from typing import NamedTuple
 
 from rich.console import Console
 from rich.table import Table
@@ -26,14 +27,25 @@ CONFIGS = {
 }
 
 
-def measure(setting: str, extra: list[str], scenarios: int, batch: int) -> tuple[float, float]:
-    """(wall seconds, scenario-epochs per second) of one run."""
+class Throughput(NamedTuple):
+    """One run's wall seconds and scenario-epochs per second, and the same per CPU second of
+    this process (steadier on a shared machine, where waiting for a core inflates wall time)."""
+
+    wall_s: float
+    rate: float
+    cpu_s: float
+    cpu_rate: float
+
+
+def measure(setting: str, extra: list[str], scenarios: int, batch: int) -> Throughput:
+    """The throughput of one run."""
     session = load_session(str(BASELINE_MISSION), [f"mission.setting='{setting}'", f"mission.scenarios={scenarios}",
                                   f"mission.batch_size={batch}", "mission.workers=1", *extra])
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     run_mission(session)
-    wall = time.perf_counter() - t0
-    return wall, scenarios * session.mission.clock.n_epochs / wall
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    epochs = scenarios * session.mission.clock.n_epochs
+    return Throughput(wall, epochs / wall, cpu, epochs / cpu)
 
 
 def main() -> None:
@@ -47,8 +59,8 @@ def main() -> None:
         table.add_column(col, justify="right" if col != "configuration" else "left")
     for setting in ("a", "b"):
         for name, extra in CONFIGS.items():
-            _, single = measure(setting, extra, args.single, 1)
-            wall, batched = measure(setting, extra, args.batch, args.batch)
+            single = measure(setting, extra, args.single, 1).rate
+            wall, batched, _, _ = measure(setting, extra, args.batch, args.batch)
             table.add_row(setting, name, f"{single:,.0f}", f"{batched:,.0f}",
                           f"{batched / single:.1f}x", f"{wall:.2f} s")
     Console().print(table)

@@ -49,8 +49,8 @@ def _child(spec: dict) -> dict:
     if spec.get("traced"):
         tracemalloc.start()
     t0 = time.perf_counter()
-    wall, rate = measure(spec["setting"], spec["extra"], spec["scenarios"], spec["batch"])
-    out = {"wall_s": wall, "rate": rate, "rss_base_mib": base, "rss_peak_mib": _rss_mib(),
+    run = measure(spec["setting"], spec["extra"], spec["scenarios"], spec["batch"])
+    out = {**run._asdict(), "rss_base_mib": base, "rss_peak_mib": _rss_mib(),
            "elapsed_s": time.perf_counter() - t0}
     if spec.get("traced"):
         out["traced_peak_mib"] = tracemalloc.get_traced_memory()[1] / 2**20
@@ -60,8 +60,8 @@ def _child(spec: dict) -> dict:
 
 def isolated(setting: str, extra: list[str], scenarios: int, batch: int,
              traced: bool = False) -> dict:
-    """bench_kernel.measure(setting, extra, scenarios, batch) in a fresh process: its wall time
-    and throughput (untraced), and its peak memory (module doc)."""
+    """bench_kernel.measure(setting, extra, scenarios, batch) in a fresh process: its wall and
+    CPU times and throughputs (untraced), and its peak memory (module doc)."""
     spec = {"setting": setting, "extra": list(extra), "scenarios": scenarios, "batch": batch,
             "traced": traced}
     out = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--child",

@@ -32,8 +32,8 @@ def test_the_memory_benchmark_reports_a_child_run():
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from bench_memory import GREEDY_REALLOC, isolated
     out = isolated("a", [*GREEDY_REALLOC, "mission.tasks=12"], 2, 2, traced=True)
-    assert set(out) == {"wall_s", "rate", "rss_base_mib", "rss_peak_mib", "elapsed_s",
-                        "traced_peak_mib"}
+    assert set(out) == {"wall_s", "rate", "cpu_s", "cpu_rate", "rss_base_mib", "rss_peak_mib",
+                        "elapsed_s", "traced_peak_mib"}
     assert out["rss_peak_mib"] >= out["rss_base_mib"] > 0
     assert out["traced_peak_mib"] > 0
 

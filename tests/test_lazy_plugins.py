@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import importlib
+import subprocess
 import sys
 import tomllib
 from pathlib import Path
@@ -94,6 +95,27 @@ def test_worker_processes_load_what_the_mission_named():
     session = runner.load_session(str(EXAMPLES / "tr_pomdp_a.toml"),
                                   [*SHORT, "mission.batch_size=1"])
     assert rows(session, workers=2) == rows(session)
+
+
+def test_the_help_and_missions_that_name_no_learned_part_never_import_torch(tmp_path):
+    """torch costs seconds a process: `ata --help` and a greedy, ITA-MILP or random mission
+    load none of it (nor does the process that runs them)."""
+    missions = [ROOT / "ata" / "missions" / "greedy.toml", EXAMPLES / "milp_a.toml",
+                EXAMPLES / "random_baseline.toml"]
+    code = ("import sys\n"
+            "from typer.testing import CliRunner\n"
+            "from ata.cli import app\n"
+            "assert CliRunner().invoke(app, ['--help']).exit_code == 0\n"
+            f"for i, m in enumerate({[str(m) for m in missions]!r}):\n"
+            "    r = CliRunner().invoke(app, ['run', m, '-q', '--out', "
+            f"{str(tmp_path)!r} + f'/run{{i}}', "
+            f"*[x for kv in {[*SHORT, 'mission.scenarios=1']!r} for x in ('--set', kv)]])\n"
+            "    assert r.exit_code == 0, r.output\n"
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in ('torch', 'ata')))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert "'ata.plugins.policies.milp'" in out      # it did run them
+    assert "torch" not in out
 
 
 def test_cli_runs_a_mission_that_names_no_plugins(cli, tmp_path):

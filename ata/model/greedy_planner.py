@@ -31,7 +31,7 @@ from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext
 from ata.model import tables
 from ata.model.plan import as_seen, fatigue_belief, plan_start, project, seen, task_attributes
-from ata.model.retask import RetaskCost, retask_cost, worth
+from ata.model.retask import RetaskCost, retask_cost, worth_many
 from ata.model.team import RobotConstants
 
 HUMAN_TIME_COST = 0.04
@@ -78,33 +78,40 @@ class GreedyPlanner:
         cost = retask_cost(ctx)
         if not self.s.retask_cost or cost.free or self.planned_attrs is None:
             return plan(ctx, self.s, open_)
-        return self._cheapest(ctx, open_, cost)
+        # weigh the scenarios with something to reallocate; the others keep their allocation
+        rows = np.nonzero(open_.any(axis=1))[0]
+        out = ctx.previous.copy()
+        self.choices[0] += open_.shape[0] - rows.size
+        if rows.size:
+            sub, self.planned_attrs[rows] = self._cheapest(ctx.take(rows), open_[rows], cost,
+                                                           self.planned_attrs[rows])
+            out.robot[rows], out.navigator[rows], out.classifier[rows] = \
+                sub.robot, sub.navigator, sub.classifier
+        return out
 
-    def _cheapest(self, ctx: DecisionContext, open_: np.ndarray,
-                  cost: RetaskCost) -> Allocation:
+    def _cheapest(self, ctx: DecisionContext, open_: np.ndarray, cost: RetaskCost,
+                  planned_attrs: np.ndarray) -> tuple[Allocation, np.ndarray]:
         """Keep, repair or re-plan in full (if `replan_in_full`), whichever is worth most net
-        of its cost."""
+        of its cost; and the attributes each POI is now planned with."""
         prev, S = ctx.previous, seen(ctx)
         attrs = task_attributes(ctx)
         working = S["robots"].col("working") > 0.5
         lost = ~np.take_along_axis(working, prev.robot, axis=1)
-        affected = open_ & (lost | (attrs != self.planned_attrs).any(axis=-1))
+        affected = open_ & (lost | (attrs != planned_attrs).any(axis=-1))
         start = plan_start(ctx)
         repair = prev.copy()
         rows = np.nonzero(affected.any(axis=1))[0]
         if rows.size:
-            kept = project(start, prev, open_ & ~affected)
+            kept = project(start.take(rows), prev.take(rows), (open_ & ~affected)[rows])
             after = dict(robot_free=kept.robot_free, robot_xy=kept.robot_xy,
                          human_free=kept.human_free)
-            sub = _plan(ctx.take(rows), self.s, affected[rows],
-                        after={k: v[rows] for k, v in after.items()})
+            sub = _plan(ctx.take(rows), self.s, affected[rows], after=after)
             for field in ("robot", "navigator", "classifier"):
                 getattr(repair, field)[rows] = np.where(affected[rows], getattr(sub, field),
                                                         getattr(prev, field)[rows])
         candidates = (prev, repair) + ((plan(ctx, self.s, open_),) if self.s.replan_in_full
                                        else ())
-        value = np.stack([worth(ctx, start, c, open_, cost, self.s.human_time_cost)
-                          for c in candidates], axis=1)
+        value = worth_many(ctx, start, candidates, open_, cost, self.s.human_time_cost)
         best = np.zeros(value.shape[0], dtype=np.int64)
         # a change must gain more than it costs: keep wins ties
         for i in range(1, len(candidates)):
@@ -117,15 +124,23 @@ class GreedyPlanner:
                 getattr(out, field)[rows_i] = getattr(cand, field)[rows_i]
         replanned = np.where((best == 2)[:, None], open_, np.where((best == 1)[:, None],
                                                                   affected, False))
-        self.planned_attrs = np.where(replanned[..., None], attrs, self.planned_attrs)
-        return out
+        return out, np.where(replanned[..., None], attrs, planned_attrs)
+
+
+def _human_gain(skill: np.ndarray, f_d: np.ndarray, points12: np.ndarray) -> np.ndarray:
+    """Expected points of a human classification for each of the 12 (quality, difficulty)
+    combinations (`f_d` and `points12` the F_D table and the points of each, raveled), for
+    humans whose eta * F_f * lambda is `skill` (any shape; the combinations a new last axis)."""
+    return points12 * (2 * (0.5 + skill[..., None] * f_d) - 1)
 
 
 def peak_bytes(batch: int, humans: int, robots: int, tasks: int) -> int:
     """An estimate of the planner's peak working memory for a batch of `batch` scenarios, in
     bytes: linear in the POIs, its (batch, robots or humans, POIs) arrays dominate (those of
-    `ata.model.plan.project` included), its (batch, POIs) ones come next. Measured with
-    tracemalloc on the (a) team at 1040 POIs: about 1 KB per scenario and POI, under this."""
+    `ata.model.plan.project` included, which projects the candidates of a reallocation in one
+    batch of up to three plans per scenario), its (batch, POIs) ones come next. Measured with
+    tracemalloc at 1040 POIs: about 1.6 KB per scenario and POI on the (a) team (this gives
+    2.3), 1.8 KB on the (b) team (this gives 4.1)."""
     per_scenario = 16 * (robots + humans) * tasks + 64 * tasks
     return 8 * batch * per_scenario
 
@@ -167,7 +182,6 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
     points = tables.POINTS[diff]
     area = I.extras["area_m"][:, None]          # positions in I and S are shares of the side
 
-    b_all = np.arange(B)
     robot_free = np.full((B, R), now)
     robot_xy = (np.stack([S["robots"].col("x"), S["robots"].col("y")], -1) if S is not None
                 else np.full((B, R, 2), 0.5))
@@ -199,86 +213,129 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
     # flat lookups: (quality, difficulty) -> q * 3 + d; a scenario's row b of an (B, K) array
     # is at b * K in the flattened array (1-D takes are far cheaper than 2-D fancy indexing)
     p_rc, t_bar, quality = tables.P_RC.ravel(), tables.T_BAR.ravel(), tables.QUALITY.ravel()
-    row12 = (b_all * 12)[:, None]
     kind3 = kind * 3
     points12 = np.tile(tables.POINTS, 4)
+    f_d, h_weight = tables.F_D.ravel(), np.arange(H, 0, -1, dtype=np.int16)[:, None, None]
     tx, ty = t_xy[..., 0] * area, t_xy[..., 1] * area
-    # distances on demand, one (B, P) row a step: from the chosen robot's start, or from the
-    # last task it was given (no (B, P, P) array, so memory stays linear in P)
+    # where each robot is when free, in metres: a committed robot at its target (the same
+    # floats as that task's tx, ty); distances are measured on demand, one (B, P) row a step
+    # (no (B, P, P) array, so memory stays linear in P)
     rx, ry = robot_xy[..., 0] * area, robot_xy[..., 1] * area
-    at_task = np.full((B, R), -1, dtype=np.int64)
-    if S is not None and committed.any():
-        at_task[cb, cr] = target[cb, cr]
     if after is not None:
         robot_free = after["robot_free"].copy()
         human_free = after["human_free"].copy()
         rx, ry = after["robot_xy"][..., 0], after["robot_xy"][..., 1]
-        at_task[:] = -1
 
     # per (robot type, navigator class auto / high skill): each task's (quality, difficulty)
-    # index into the 12 flattened combinations, offset to its scenario's row, and the
-    # expected points onboard; rows are picked per step by the chosen robot's type
+    # index into the 12 flattened combinations and the expected points onboard; rows are
+    # picked per step by the chosen robot's type
     combos = [(rt, nc) for rt in (tables.UAV, tables.UGV) for nc in (1, 2)]
-    qd_flat = np.stack([row12 + quality[rt * 6 + kind3 + nc] * 3 + diff for rt, nc in combos], 1)
-    ev_onboard = np.stack([points * (2 * p_rc[qd_flat[:, i] - row12] - 1)
+    qd_base = np.stack([quality[rt * 6 + kind3 + nc] * 3 + diff for rt, nc in combos], 1)
+    ev_onboard = np.stack([points * (2 * p_rc[qd_base[:, i]] - 1)
                            for i in range(len(combos))], axis=1)                # (B, 4, P)
-    tbar_task = np.stack([t_bar[qd_flat[:, i] - row12] for i in range(len(combos))], axis=1)
+    tbar_task = np.stack([t_bar[qd_base[:, i]] for i in range(len(combos))], axis=1)
     n_opt = 2 if (s.human_navigators and H > 0) else 1
+    options = np.arange(n_opt)
 
-    for _ in range(P):
-        active = remaining.any(axis=1) & np.isfinite(robot_free.min(axis=1))
-        if not active.any():
+    # The loop works on the scenarios still planning (`rows`) and, in each, on its tasks still
+    # open (`cols`, (A, C), open ones first in task order): a finished scenario changes nothing
+    # and a task no longer open scores -inf, so dropping them changes no choice, ties included.
+    # The working set is re-taken when a quarter of it has finished. The per-scenario state
+    # below is that of `rows`; `robot_free_all` and `human_free_all` receive it as rows leave.
+    robot_free_all, human_free_all, remaining_all = robot_free, human_free, remaining
+    rows = np.arange(B)
+    cols = np.broadcast_to(np.arange(P), (B, P))
+    n_left = remaining.sum(axis=1)
+    A, C = B, P
+    gain = None      # (H, A, 12) each human's expected points per combination (`_human_gain`)
+    touched_b = touched_h = np.zeros(0, dtype=np.int64)   # humans whose time changed since
+    for step in range(P):
+        active = (n_left > 0) & np.isfinite(robot_free.min(axis=1))
+        n_act = int(active.sum())
+        if n_act == 0:
             break
+        width = int(np.max(n_left, where=active, initial=0))
+        if step == 0 or n_act <= 0.75 * A or width <= 0.75 * C:
+            gone = rows[~active]
+            robot_free_all[gone], human_free_all[gone] = robot_free[~active], human_free[~active]
+            keep = np.nonzero(active)[0]
+            order = np.argsort(~remaining[keep], axis=1, kind="stable")[:, :width]
+            per_row = [x[keep] for x in (robot_free, human_free, hours, eta, lam, high, speed,
+                                         r_type, rx, ry, n_left)]
+            at = (keep * C)[:, None] + order                  # flat positions of what stays
+            per_task = [x.ravel()[at] for x in (remaining, cols, tx, ty)]
+            at = (keep * 4 * C)[:, None, None] + (np.arange(4) * C)[:, None] + order[:, None, :]
+            per_combo = [x.ravel()[at] for x in (qd_base, ev_onboard, tbar_task)]
+            rows, belief = rows[keep], belief.take(keep)
+            (robot_free, human_free, hours, eta, lam, high, speed, r_type, rx, ry,
+             n_left) = per_row
+            remaining, cols, tx, ty = per_task
+            qd_base, ev_onboard, tbar_task = per_combo
+            if gain is not None:
+                gain = gain[:, keep]
+                local, stays = np.cumsum(active) - 1, active[touched_b]
+                touched_b, touched_h = local[touched_b[stays]], touched_h[stays]
+            A, C = rows.size, width
+            active = np.ones(A, dtype=bool)
+            b_all = np.arange(A)
+            # a scenario's row b of an (A, 12) array is at b * 12 in the flattened array
+            row12, row_h = (b_all * 12)[:, None], (b_all * H)[:, None]
+            qd_flat = qd_base + row12[:, :, None]
         rs = robot_free.argmin(axis=1)
         t_free = robot_free[b_all, rs]
-        at = at_task[b_all, rs]
-        at0 = np.maximum(at, 0)
-        gap_x = tx[b_all, at0][:, None] - tx
-        gap_y = ty[b_all, at0][:, None] - ty
-        dist = np.sqrt(gap_x * gap_x + gap_y * gap_y)                          # (B, P)
-        if (at < 0).any():
-            start_x = tx - rx[b_all, rs][:, None]
-            start_y = ty - ry[b_all, rs][:, None]
-            dist = np.where((at < 0)[:, None],
-                            np.sqrt(start_x * start_x + start_y * start_y), dist)
+        gap_x = rx[b_all, rs][:, None] - tx
+        gap_y = ry[b_all, rs][:, None] - ty
+        dist = np.sqrt(gap_x * gap_x + gap_y * gap_y)                          # (A, C)
         v = np.maximum(speed[b_all, rs], 1e-9)[:, None]
         combo0 = r_type[b_all, rs] * 2
 
         # best human classifier for each (quality, difficulty), given the plan so far
         f_f = belief.at(hours + np.maximum(human_free - now, 0) / 3600.0)
-        p_h = 0.5 + (eta * f_f * lam)[:, :, None] * tables.F_D.ravel()         # (B, H, 12)
-        delay = np.maximum(human_free - t_free[:, None], 0.0)[:, :, None]
-        net_h = points12 * (2 * p_h - 1) - s.human_time_cost * (t_bar + delay)
-        best_c = net_h.argmax(axis=1)                                          # (B, 12)
-        best_net = np.take_along_axis(net_h, best_c[:, None], axis=1)[:, 0].ravel()
-        best_free = np.take_along_axis(human_free, best_c, axis=1).ravel()
+        # (H, A, 12): the humans first, so that the choice among them is an elementwise max
+        # over H contiguous slices (argmax along a short axis is several times slower); on
+        # ties the first human, as argmax: the largest H - h where net_h is the best. A
+        # human's expected points per combination change only when the human's time does
+        if gain is None:
+            gain = _human_gain((eta * f_f * lam).T, f_d, points12)
+        elif touched_b.size:
+            gain[touched_h, touched_b] = _human_gain((eta * f_f * lam)[touched_b, touched_h],
+                                                     f_d, points12)
+        delay = np.maximum(human_free - t_free[:, None], 0.0).T[:, :, None]
+        net_h = gain - s.human_time_cost * (t_bar + delay)
+        best = np.maximum.reduce(net_h, axis=0)                                 # (A, 12)
+        best_c = H - np.maximum.reduce((net_h == best) * h_weight, axis=0)
+        best_net = best.ravel()
+        best_free = human_free.ravel()[best_c + row_h].ravel()
 
         # option 0: the robot drives itself; option 1: the first free highly skilled human
-        # navigates (faster, one quality level up, the human busy for the leg)
-        arrivals = [t_free[:, None] + dist / v + capture_s]
-        nav_costs = [0.0]
+        # navigates (faster, one quality level up, the human busy for the leg); both options
+        # at once, (A, O, C)
+        arrival = np.empty((A, n_opt, C))
+        np.divide(dist, v, out=arrival[:, 0])
+        arrival[:, 0] += t_free[:, None]
+        arrival[:, 0] += capture_s
         if n_opt == 2:
             hf = np.where(high, human_free, np.inf)
             hn = hf.argmin(axis=1)
             start = np.maximum(t_free, hf[b_all, hn])[:, None]
-            leg = dist / (v * tables.SKILL_SPEED[2]) + capture_s
-            arrivals.append(start + leg)          # inf where no highly skilled human exists
-            nav_costs.append(s.human_time_cost * leg)
-        scores = []
-        for o in range(n_opt):
-            arr = arrivals[o]
-            combo = combo0 + o
-            qd = qd_flat[b_all, combo]
-            ev_on = ev_onboard[b_all, combo]
-            finish = np.maximum(arr, best_free[qd]) + tbar_task[b_all, combo]
-            hum_net = np.where(finish <= horizon, best_net[qd], 0.0)
-            value = np.maximum(hum_net, ev_on) - nav_costs[o]
-            with np.errstate(invalid="ignore"):   # inf - inf for robots that are done
-                rate = value / (arr - t_free[:, None] + s.rate_offset_s)
-            scores.append(np.where(remaining & (arr <= horizon), rate, -np.inf))
-        score = np.concatenate(scores, axis=1)                                 # (B, O * P)
+            leg = arrival[:, 1]
+            np.divide(dist, v * tables.SKILL_SPEED[2], out=leg)
+            leg += capture_s
+            nav_cost = s.human_time_cost * leg
+            leg += start                          # inf where no highly skilled human exists
+        combo = combo0[:, None] + options                                      # (A, O)
+        qd = qd_flat[b_all[:, None], combo]
+        finish = np.maximum(arrival, best_free[qd]) + tbar_task[b_all[:, None], combo]
+        value = np.maximum(np.where(finish <= horizon, best_net[qd], 0.0),
+                           ev_onboard[b_all[:, None], combo])
+        if n_opt == 2:
+            value[:, 1] -= nav_cost
+        with np.errstate(invalid="ignore"):       # inf - inf for robots that are done
+            rate = value / (arrival - t_free[:, None, None] + s.rate_offset_s)
+        score = np.where(remaining[:, None, :] & (arrival <= horizon), rate,
+                         -np.inf).reshape(A, -1)                                # (A, O * C)
         flat = score.argmax(axis=1)
-        o_star, p_star = np.divmod(flat, P)
+        o_star, p_star = np.divmod(flat, C)
         ok = active & np.isfinite(score[b_all, flat])
         # a robot with nothing it can reach in time is done
         robot_free[b_all[active & ~ok], rs[active & ~ok]] = np.inf
@@ -289,7 +346,7 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
         combo = combo0[b] + o_b
         qd = qd_flat[b, combo, p]
         qq = (qd - row12[b, 0]) // 3
-        arr = np.where(o_b == 0, arrivals[0][b, p], arrivals[-1][b, p])
+        arr = arrival[b, o_b, p]
         c = best_c.ravel()[qd]
         finish = np.maximum(arr, best_free[qd]) + tbar_task[b, combo, p]
         # a human classifier also when none can finish in time but onboard expects a loss:
@@ -297,17 +354,24 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
         use_h = np.where(finish <= horizon, best_net[qd], 0.0) > ev_onboard[b, combo, p]
         cls = np.where(use_h, c, -1)
         nav = np.where(o_b == 1, hn[b] if n_opt == 2 else -1, -1)
-        robot[b, p] = rs[b]
-        navigator[b, p] = nav
-        classifier[b, p] = cls
+        gb, gp = rows[b], cols[b, p]
+        robot[gb, gp] = rs[b]
+        navigator[gb, gp] = nav
+        classifier[gb, gp] = cls
         remaining[b, p] = False
+        remaining_all[gb, gp] = False
+        n_left[b] -= 1
         robot_free[b, rs[b]] = arr
-        at_task[b, rs[b]] = p
+        rx[b, rs[b]], ry[b, rs[b]] = tx[b, p], ty[b, p]
         hn_b = nav >= 0
         human_free[b[hn_b], nav[hn_b]] = arr[hn_b]
         hc = cls >= 0
         human_free[b[hc], cls[hc]] = (np.maximum(arr[hc], human_free[b[hc], cls[hc]])
-                                      + tables.T_BAR[qq[hc], diff[b[hc], p[hc]]])
+                                      + tables.T_BAR[qq[hc], diff[gb[hc], gp[hc]]])
+        touched_b = np.concatenate([b[hn_b], b[hc]])
+        touched_h = np.concatenate([nav[hn_b], cls[hc]])
+    robot_free_all[rows], human_free_all[rows] = robot_free, human_free
+    robot_free, human_free, remaining = robot_free_all, human_free_all, remaining_all
 
     if remaining.any():
         # left over: give each to the robot whose plan ends first, driving itself, classified

@@ -66,6 +66,14 @@ class PlanStart:
     def batch(self) -> int:
         return self.points.shape[0]
 
+    def take(self, rows: np.ndarray) -> "PlanStart":
+        """The start of a sub-batch of scenarios, or of several plans per scenario (`rows` may
+        repeat): every per-scenario field taken at `rows`."""
+        return dataclasses.replace(self, **{
+            f.name: v[rows] if isinstance(v, np.ndarray) else v.take(rows)
+            for f in dataclasses.fields(self)
+            if not isinstance(v := getattr(self, f.name), (int, float))})
+
 
 def seen(ctx: DecisionContext) -> Observation | None:
     """S as the planners see it: each group's rows from ``ctx.reconstructed[group]`` where a
@@ -225,7 +233,7 @@ def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None
     robot_free = start.robot_free.copy()
     if robot_delay is not None:
         robot_free = robot_free + robot_delay
-    robot_xy = start.robot_xy.copy()
+    rx, ry = start.robot_xy[..., 0].copy(), start.robot_xy[..., 1].copy()
     human_free = start.human_free.copy()
     if human_delay is not None:
         human_free = human_free + human_delay
@@ -237,21 +245,17 @@ def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None
     left &= np.isfinite(np.take_along_axis(robot_free, owner, axis=1))
     b_all = np.arange(B)
     R = robot_free.shape[1]
-    # each robot's POIs in POI order, padded with -1: (B, R, K), K the most any robot owns; a
-    # step measures the chosen robot's distance to its own POIs only, and argmin keeps POI
-    # order, so ties go to the same POI as over all P
-    order = np.argsort(owner, axis=1, kind="stable")
-    owned = np.zeros((B, R), dtype=np.int64)
-    np.add.at(owned, (np.repeat(b_all, P), owner.ravel()), 1)
-    K = int(owned.max()) if owned.size else 0
-    first = np.cumsum(owned, axis=1) - owned                               # (B, R)
-    slot = np.arange(P)[None, :] - first[b_all[:, None], np.take_along_axis(owner, order, 1)]
-    mine_idx = np.full((B, R, max(K, 1)), -1, dtype=np.int64)
-    mine_idx[b_all[:, None], np.take_along_axis(owner, order, 1), slot] = order
-    # POIs left per robot, kept up to date instead of scanning `left` every step
-    count = np.zeros((B, R), dtype=np.int64)
-    lb, lp = np.nonzero(left)
-    np.add.at(count, (lb, owner[lb, lp]), 1)
+    count, mine = _robot_lists(left, owner, R)
+    mine_left = mine >= 0
+    np.maximum(mine, 0, out=mine)
+    mine += (np.arange(B) * P).repeat(R)[:, None]                       # flat: b P + p
+    task_x, task_y = start.task_xy[..., 0].ravel(), start.task_xy[..., 1].ravel()
+    # read through flat indices (b P + p, b R + r: 1-D takes are far cheaper than 2-D indexing)
+    speed, quality = _per_poi(start, alloc)
+    navigator, classifier = alloc.navigator.ravel(), alloc.classifier.ravel()
+    difficulty, points = start.diff.ravel(), start.points.ravel()
+    robot_free_at, rx_at, ry_at = robot_free.ravel(), rx.ravel(), ry.ravel()    # views
+    expected_at, arrival_at, finish_at = expected.ravel(), arrival.ravel(), finish.ravel()
     for _ in range(P):
         has = count > 0
         if not has.any():
@@ -260,30 +264,28 @@ def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None
         rs = free.argmin(axis=1)
         act = has.any(axis=1)
         b, rr = b_all[act], rs[act]
-        cand = mine_idx[b, rr]                                              # (A, K)
-        valid = (cand >= 0) & left[b[:, None], np.maximum(cand, 0)]
-        gap = start.task_xy[b[:, None], np.maximum(cand, 0)] - robot_xy[b, rr][:, None, :]
-        dist = np.where(valid, np.hypot(gap[..., 0], gap[..., 1]), np.inf)
+        br = b * R + rr
+        cand = mine[br]                                                      # (A, K)
+        gap_x = task_x[cand] - rx_at[br][:, None]
+        gap_y = task_y[cand] - ry_at[br][:, None]
+        dist = np.where(mine_left[br], np.hypot(gap_x, gap_y), np.inf)
         k = dist.argmin(axis=1)
         a_all = np.arange(b.size)
-        p, d = cand[a_all, k], dist[a_all, k]
-        nav = alloc.navigator[b, p]
+        bp, d = cand[a_all, k], dist[a_all, k]
+        p = bp - b * P
+        nav = navigator[bp]
         navigated = nav >= 0
         nav_h = np.maximum(nav, 0)
-        nav_class = np.where(navigated, start.skill[b, nav_h], 1)
-        v = start.speed[b, rr] * np.where(navigated, tables.SKILL_SPEED[nav_class], 1.0)
-        leg = d / np.maximum(v, 1e-9) + capture_s
-        depart = np.where(navigated, np.maximum(robot_free[b, rr], human_free[b, nav_h]),
-                          robot_free[b, rr])
+        leg = d / np.maximum(speed[bp], 1e-9) + capture_s
+        depart = np.where(navigated, np.maximum(robot_free_at[br], human_free[b, nav_h]),
+                          robot_free_at[br])
         arr = depart + leg
         in_time = arr <= start.horizon
         # a navigator is booked for the leg only if it can start it in time
         nb = navigated & (depart < start.horizon)
         human_free[b[nb], nav_h[nb]] = arr[nb]
         busy[b[nb], nav_h[nb]] += leg[nb]
-        q = tables.QUALITY[start.robot_type[b, rr], start.kind[b, p], nav_class]
-        dd = start.diff[b, p]
-        cls = alloc.classifier[b, p]
+        q, dd, cls = quality[bp], difficulty[bp], classifier[bp]
         by_human = (cls >= 0) & in_time
         ch = np.maximum(cls, 0)
         begin = np.maximum(arr, human_free[b, ch])
@@ -296,19 +298,53 @@ def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None
         p_ok = np.where(cls >= 0, 0.5 + start.eta[b, ch] * f_f * start.lam[b, ch]
                         * tables.F_D[q, dd], tables.P_RC[q, dd])
         counted = in_time & (done <= start.horizon)
-        expected[b, p] = np.where(counted, tables.expected_points(start.points[b, p], p_ok), 0.0)
-        arrival[b, p] = np.where(in_time, arr, np.inf)
-        finish[b, p] = np.where(counted, done, np.inf)
+        expected_at[bp] = np.where(counted, tables.expected_points(points[bp], p_ok), 0.0)
+        arrival_at[bp] = np.where(in_time, arr, np.inf)
+        finish_at[bp] = np.where(counted, done, np.inf)
         hb = by_human & (begin < start.horizon)
         human_free[b[hb], ch[hb]] = done[hb]
         busy[b[hb], ch[hb]] += t_bar[hb]
-        robot_free[b, rr] = np.where(in_time, arr, np.inf)
-        robot_xy[b, rr] = start.task_xy[b, p]
-        left[b, p] = False
+        robot_free_at[br] = np.where(in_time, arr, np.inf)
+        rx_at[br], ry_at[br] = task_x[bp], task_y[bp]
+        mine_left[br, k] = False
         count[b, rr] -= 1
         # a robot whose next leg overruns the horizon is done
-        left[b[~in_time]] &= owner[b[~in_time]] != rr[~in_time, None]
+        mine_left[br[~in_time]] = False
         count[b[~in_time], rr[~in_time]] = 0
     return Projection(value=expected.sum(axis=1), human_busy_s=busy.sum(axis=1),
                       expected=expected, arrival=arrival, finish=finish,
-                      robot_free=robot_free, robot_xy=robot_xy, human_free=human_free)
+                      robot_free=robot_free, robot_xy=np.stack([rx, ry], axis=-1),
+                      human_free=human_free)
+
+
+def _robot_lists(left: np.ndarray, owner: np.ndarray, R: int) -> tuple[np.ndarray, np.ndarray]:
+    """The POIs left per robot (B, R), and each robot's list of them in POI order, padded with
+    -1 (B R, K), K the most any robot has: a projection step measures the chosen robot's
+    distance to these only, and argmin keeps POI order, so ties go to the same POI as over
+    all P."""
+    B = left.shape[0]
+    lb, lp = np.nonzero(left)                                  # by scenario, then POI order
+    lr = owner[lb, lp]
+    count = np.zeros((B, R), dtype=np.int64)
+    np.add.at(count, (lb, lr), 1)
+    key = lb * R + lr
+    by_robot = np.argsort(key, kind="stable")
+    slot = np.arange(lb.size) - (np.cumsum(count.ravel()) - count.ravel())[key[by_robot]]
+    mine = np.full((B * R, max(int(count.max()) if count.size else 0, 1)), -1, dtype=np.int64)
+    mine[key[by_robot], slot] = lp[by_robot]
+    return count, mine
+
+
+def _per_poi(start: PlanStart, alloc: Allocation) -> tuple[np.ndarray, np.ndarray]:
+    """What each POI's leg and classification are under `alloc`, the same at every step of a
+    projection, raveled (B P,): the robot's speed on the leg (its navigator's skill) and the
+    image quality."""
+    owner = alloc.robot
+    navigated = alloc.navigator >= 0
+    nav_class = np.where(navigated, np.take_along_axis(start.skill, np.maximum(
+        alloc.navigator, 0), axis=1), 1)
+    speed = (np.take_along_axis(start.speed, owner, axis=1)
+             * np.where(navigated, tables.SKILL_SPEED[nav_class], 1.0)).ravel()
+    quality = tables.QUALITY[np.take_along_axis(start.robot_type, owner, axis=1), start.kind,
+                             nav_class].ravel()
+    return speed, quality

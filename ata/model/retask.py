@@ -5,6 +5,7 @@ by, public for the policies that weigh theirs alike."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 
@@ -69,12 +70,40 @@ def worth(ctx: DecisionContext, start: PlanStart, cand: Allocation, open_: np.nd
     """(B,) projected points of the `open_` POIs under `cand`, less the price of the human time
     booked (`human_time_cost` points a second) and of the re-tasking that the change from the
     allocation in force costs: re-briefed humans and re-planned robots start late."""
-    prev = ctx.previous
-    changed = open_ & ((cand.robot != prev.robot) | (cand.navigator != prev.navigator)
-                       | (cand.classifier != prev.classifier))
-    humans = retasked_humans(prev, cand, changed, ctx.sizes.humans)
-    robots = retasked_robots(prev, cand, changed, start.robot_free.shape[1])
-    proj = project(start, cand, open_, human_delay=humans * cost.rebrief_s,
+    return worth_many(ctx, start, [cand], open_, cost, human_time_cost)[:, 0]
+
+
+def worth_many(ctx: DecisionContext, start: PlanStart, cands: Sequence[Allocation],
+               open_: np.ndarray, cost: RetaskCost, human_time_cost: float) -> np.ndarray:
+    """(B, len(cands)): `worth` of each candidate, projected in one batch of plans. A later
+    candidate's row equal to the first candidate's is worth the same, so it is not projected
+    again."""
+    prev, first, B = ctx.previous, cands[0], open_.shape[0]
+    # the plans to project: the first candidate in every scenario, then each later one in the
+    # scenarios where it differs from the first; slot: each (scenario, candidate)'s plan
+    plans, scenario = [first], [np.arange(B)]
+    slot = np.repeat(np.arange(B)[:, None], len(cands), axis=1)
+    n = B
+    for i, cand in enumerate(cands[1:], start=1):
+        differs = ((cand.robot != first.robot) | (cand.navigator != first.navigator)
+                   | (cand.classifier != first.classifier)).any(axis=1)
+        rows = np.nonzero(differs)[0]
+        slot[rows, i] = n + np.arange(rows.size)
+        plans.append(cand.take(rows))
+        scenario.append(rows)
+        n += rows.size
+    humans, robots = [], []
+    for plan, rows in zip(plans, scenario):
+        before = prev if rows.size == B else prev.take(rows)
+        changed = open_[rows] & ((plan.robot != before.robot) | (plan.navigator != before.navigator)
+                                 | (plan.classifier != before.classifier))
+        humans.append(retasked_humans(before, plan, changed, ctx.sizes.humans))
+        robots.append(retasked_robots(before, plan, changed, start.robot_free.shape[1]))
+    at = np.concatenate(scenario)
+    alloc = Allocation(*(np.concatenate([getattr(a, f) for a in plans])
+                         for f in ("robot", "navigator", "classifier")))
+    humans, robots = np.concatenate(humans), np.concatenate(robots)
+    proj = project(start.take(at), alloc, open_[at], human_delay=humans * cost.rebrief_s,
                    robot_delay=robots * cost.replan_s)
     human_s = proj.human_busy_s + humans.sum(axis=1) * cost.human_seconds
-    return proj.value - human_time_cost * human_s
+    return (proj.value - human_time_cost * human_s)[slot]

@@ -51,10 +51,18 @@ def nearest(sim: SimState, free: np.ndarray) -> np.ndarray:
     heading = np.zeros(r.visited.shape, dtype=bool)
     heading[tb, r.target[tb, tr]] = True
     open_ &= ~heading[fb]
-    diff = t.pos[fb] - r.pos[fb, fr][:, None, :]                               # (n, P, 2)
-    dist = np.where(open_, np.hypot(diff[..., 0], diff[..., 1]), np.inf)
-    best = dist.argmin(axis=1)
-    out[fb, fr] = np.where(open_.any(axis=1), best, -1)
+    # distances of the open (robot, POI) pairs only, row by row in POI order; the nearest of
+    # each row, the first in POI order on ties (as an argmin over the row)
+    ei, ep = np.nonzero(open_)
+    if ei.size == 0:
+        return out
+    eb = fb[ei]
+    diff = t.pos[eb, ep] - r.pos[eb, fr[ei]]                                   # (m, 2)
+    dist = np.hypot(diff[:, 0], diff[:, 1])
+    starts = np.flatnonzero(np.r_[True, ei[1:] != ei[:-1]])
+    nearest_d = np.repeat(np.minimum.reduceat(dist, starts), np.diff(np.r_[starts, ei.size]))
+    best = np.minimum.reduceat(np.where(dist == nearest_d, ep, open_.shape[1]), starts)
+    out[eb[starts], fr[ei[starts]]] = best
     return out
 
 
