@@ -110,12 +110,17 @@ class FatigueBelief:
                              self.offset[rows], self.floor)
 
 
+def has_belief(reconstructed: Mapping[str, np.ndarray]) -> bool:
+    """Whether a reconstructor handed over a belief (every key of `BELIEF_KEYS`)."""
+    return all(k in reconstructed for k in BELIEF_KEYS)
+
+
 def belief_from(reconstructed: Mapping[str, np.ndarray], fatigue_now: np.ndarray,
                 hours_now: np.ndarray, floor: float) -> FatigueBelief:
     """The belief a reconstructor handed over in `reconstructed` (the `BELIEF_KEYS`), else the
     value `fatigue_now` (B, H) (the reconstructed or observed S) moved ahead along the
     population line from `hours_now`."""
-    if all(k in reconstructed for k in BELIEF_KEYS):
+    if has_belief(reconstructed):
         on, sl, w = (np.asarray(reconstructed[k], dtype=float) for k in BELIEF_KEYS)
         return FatigueBelief(on, sl, w, np.zeros(on.shape[:-1]), float(floor))
     return FatigueBelief.shifted(np.asarray(fatigue_now, dtype=float),

@@ -113,7 +113,7 @@ def fatigue_belief(ctx: DecisionContext, S: Observation | None = None) -> Fatigu
 def believed(ctx: DecisionContext) -> bool:
     """Whether a reconstructor handed the planners a belief of the fatigue curves (else they
     move the fatigue of S along the population line)."""
-    return all(k in ctx.reconstructed for k in fatigue.BELIEF_KEYS)
+    return fatigue.has_belief(ctx.reconstructed)
 
 
 def as_seen(ctx: DecisionContext) -> DecisionContext:
