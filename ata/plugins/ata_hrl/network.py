@@ -86,8 +86,10 @@ class Encoder(nn.Module):
         return dict(zip(GROUPS, torch.split(out, sizes, dim=1)))
 
 
-MIN_ROWS = 3
-"""Fewest rows a `StepScorer` with `legal` candidates multiplies at once (`_legal_hidden`)."""
+MIN_ROWS = 16
+"""Fewest rows a `StepScorer` with `legal` candidates multiplies at once (`_legal_hidden`): a
+CPU's matrix product may round a row otherwise when it multiplies only a few (one to three rows
+on the CPUs tried), and from this many on each row comes out as among all of them."""
 
 
 class StepScorer(nn.Module):
