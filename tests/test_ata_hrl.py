@@ -134,11 +134,11 @@ def test_first_reallocation_step_follows_greedy_and_masks_down_robots():
     assert first.features[0, :, 12].tolist() == [1.0, 0.0]     # greedy keeps it
 
 
-@pytest.mark.parametrize("legal_count", [0, 1, 2, 3, 40, 700])
+@pytest.mark.parametrize("legal_count", [0, 1, 2, 3, 15, 16, 40, 700])
 def test_a_scorer_of_the_legal_candidates_alone_gives_the_same_logits(legal_count):
     # the decoder's POI step computes the hidden layers of the legal candidates only: the
     # logits must be the same, bit for bit, as with every candidate's (a CPU matrix product
-    # gives each row the same result whatever the number of rows, from 3 on)
+    # gives each row the same result whatever the number of rows, from a few on: MIN_ROWS)
     gen = torch.Generator().manual_seed(legal_count)
     scorer = StepScorer("poi", NetConfig())
     with torch.no_grad():
@@ -238,19 +238,19 @@ def test_sampled_decisions_do_not_depend_on_the_batch():
 
 def test_the_shipped_ita_is_trained_and_decides_otherwise_than_its_prior():
     # ata/weights/ata_hrl_a.pt records where it came from (docs/training.md, "Provenance"): the
-    # cond phase's one fit on the file it started from, whose ITA the three (a) files share
+    # aux phase on the ITA of a run of its own, which the three (a) files share
     from ata.training import WEIGHTS
     data = read_checkpoint(WEIGHTS / "ata_hrl_a.pt", "ata_hrl")
     assert data["trained"] == ["ita", "cond", "tr", "aux"]
-    assert (data["init_from"], data["ita_from"]) == ("builtin:ata_hrl_a", "")
-    assert data["counters"] == {"aux": 0, "status": 0, "ita": 0, "cond": 1, "ctr": 0,
-                                "episodes": 7380}
+    assert (data["init_from"], data["ita_from"]) == ("", "runs/r3/ita_a_1e-3/best.pt")
+    assert data["counters"] == {"aux": 400, "status": 0, "ita": 0, "cond": 0, "ctr": 0,
+                                "episodes": 0}
     for other in ("ata_hrl_wo_aux_a", "ata_hrl_wo_c_a"):
         model = read_checkpoint(WEIGHTS / f"{other}.pt", "ata_hrl")["model"]
         assert all(torch.equal(model[k], v) for k, v in data["model"].items()
                    if k.startswith("ita.")), other
     # with its learned part off it decides as an untrained network (the prior alone); on, it
-    # changes the initial triples of 49, 55 and 49 of the 60 POIs of three held-out scenarios
+    # changes the initial triples of 55, 57 and 41 of the 60 POIs of three held-out scenarios
     mission = str(WEIGHTS.parents[1] / "examples" / "missions" / "ata_hrl_a.toml")
     ids = np.arange(3) + 2 ** 40
     runs = []
@@ -261,29 +261,21 @@ def test_the_shipped_ita_is_trained_and_decides_otherwise_than_its_prior():
     prior = Simulation(s.mission, s.registry, ids, overrides={"initial": untrained}).run()
     np.testing.assert_array_equal(runs[1].allocations, prior.allocations)
     changed = (runs[0].allocations[:, 0] != runs[1].allocations[:, 0]).any(-1).sum(1)
-    assert changed.tolist() == [49, 55, 49]
+    assert changed.tolist() == [55, 57, 41]
 
 
-def test_the_shipped_ata_hrl_and_wo_aux_weights_carry_a_fitted_rule_and_wo_c_none():
-    # pi_C's logistic rule, fitted in the cond phase, is on in the full method's files, and
-    # w/o.AUX's carry the same rule: the two networks differ in the aux module's tensors alone
-    # (which w/o.AUX does not run); w/o.C decides at every epoch, and its rule is zero and off
+def test_no_shipped_file_carries_a_rule_and_wo_aux_differs_in_the_aux_module_alone():
+    # the revision-3 fit of pi_C's rule lost at validation and was not kept (docs/training.md,
+    # "Provenance", step 4): every file's rule is zero and off, and pi_C decides with its
+    # network; w/o.AUX's networks are the full method's but for the aux module's tensors (which
+    # w/o.AUX does not run)
     from ata.training import WEIGHTS
-    rules = {}
-    for name in ("ata_hrl_a", "ata_hrl_b_ft", "ata_hrl_wo_aux_a", "ata_hrl_wo_aux_b_ft"):
+    for name in ("ata_hrl_a", "ata_hrl_b_ft", "ata_hrl_wo_aux_a", "ata_hrl_wo_aux_b_ft",
+                 "ata_hrl_wo_c_a", "ata_hrl_wo_c_b_ft"):
         data = read_checkpoint(WEIGHTS / f"{name}.pt", "ata_hrl")
-        assert data["format"] == 3 and data["counters"]["cond"] == 1, name
-        assert data["model"]["cond.rule.on"] == 1, name
-        rules[name] = data["model"]["cond.rule.weight"][0]
-    # the fitted weights: the (a) rule weighs the time since the last re-plan (feature 5)
-    # +3.21, the feature whose sign the findings show its gain rests on; feature 0 (an event
-    # is seen) is 1 at every labelled event epoch, so it is constant and weighs 0
-    np.testing.assert_allclose(rules["ata_hrl_a"], [
-        0.0, -1.3583680, -0.4508739, 2.0655367, 0.1631253, 3.2142467, -0.4593706, -1.9467671,
-        1.3690711, -0.0990900], atol=1e-6)
-    np.testing.assert_allclose(rules["ata_hrl_b_ft"], [
-        0.0, 1.1971453, 2.5776916, -1.6674860, -0.0253270, 2.4036999, -1.4168044, -2.1509871,
-        0.3256063, -0.5078123], atol=1e-6)
+        assert data["format"] == 3 and data["counters"]["cond"] == 0, name
+        model = data["model"]
+        assert model["cond.rule.on"] == 0 and not model["cond.rule.weight"].any(), name
     for full, wo_aux in (("ata_hrl_a", "ata_hrl_wo_aux_a"), ("ata_hrl_b_ft", "ata_hrl_wo_aux_b_ft")):
         a = read_checkpoint(WEIGHTS / f"{full}.pt", "ata_hrl")["model"]
         b = read_checkpoint(WEIGHTS / f"{wo_aux}.pt", "ata_hrl")["model"]
@@ -291,9 +283,6 @@ def test_the_shipped_ata_hrl_and_wo_aux_weights_carry_a_fitted_rule_and_wo_c_non
         assert {k.split(".")[0] for k in differ} == ({"fatigue", "latency", "status"}
                                                      if full == "ata_hrl_b_ft" else
                                                      {"fatigue", "latency"}), differ
-    for name in ("ata_hrl_wo_c_a", "ata_hrl_wo_c_b_ft"):
-        model = read_checkpoint(WEIGHTS / f"{name}.pt", "ata_hrl")["model"]
-        assert model["cond.rule.on"] == 0 and not model["cond.rule.weight"].any()
 
 
 @pytest.mark.slow
@@ -414,9 +403,8 @@ def test_resume_after_kill_ends_with_the_same_weights_and_log(tmp_path, phase, s
     assert log_rows(tmp_path / "broken") == log_rows(tmp_path / "whole")
 
 
-@pytest.mark.parametrize("name", ["ata_hrl_a", "ata_hrl_b", "ata_hrl_b_ft", "ata_hrl_wo_aux_a",
-                                  "ata_hrl_wo_aux_b", "ata_hrl_wo_aux_b_ft", "ata_hrl_wo_c_a",
-                                  "ata_hrl_wo_c_b", "ata_hrl_wo_c_b_ft"])
+@pytest.mark.parametrize("name", ["ata_hrl_a", "ata_hrl_b_ft", "ata_hrl_wo_aux_a",
+                                  "ata_hrl_wo_aux_b_ft", "ata_hrl_wo_c_a", "ata_hrl_wo_c_b_ft"])
 def test_a_shipped_checkpoint_resumes_under_the_mission_it_records(tmp_path, name):
     # each shipped file, with the training mission it records, is a run folder that `ata
     # train --resume` carries on: its trainer takes the networks, optimisers, generators and
@@ -425,17 +413,18 @@ def test_a_shipped_checkpoint_resumes_under_the_mission_it_records(tmp_path, nam
     data = read_checkpoint(WEIGHTS / f"{name}.pt", "ata_hrl")
     (tmp_path / "mission.resolved.toml").write_text(data["mission"])
     (tmp_path / "checkpoint.pt").write_bytes((WEIGHTS / f"{name}.pt").read_bytes())
-    # an ita_from that names a run folder of its time (not shipped; its ITA is in the file)
-    # is left out: the trainer would list that run's scenario ranges
-    unshipped = ["ata_hrl.ita_from=''"] if data["ita_from"].startswith("runs/") else []
+    # an ita_from or init_from that names a run folder of its time (not shipped) is read from
+    # the shipped file itself, which holds those networks: so the ITA phase stays skipped
+    unshipped = [f"ata_hrl.{key}='builtin:{name}'" for key in ("ita_from", "init_from")
+                 if data[key].startswith("runs/")]
     trainer = build_trainer(load_session(str(tmp_path / "mission.resolved.toml"), unshipped))
     trainer.load(tmp_path / "checkpoint.pt")
     zero = {"aux": 0, "status": 0, "ita": 0, "cond": 0, "ctr": 0, "episodes": 0}
     assert trainer.counters == {**zero, **data["counters"]}
     assert all(torch.equal(v, data["model"][k]) for k, v in trainer.net.state_dict().items())
     if name == "ata_hrl_a":
-        again = train(load_session(str(tmp_path / "mission.resolved.toml")), tmp_path,
-                      resume=True)
+        again = train(load_session(str(tmp_path / "mission.resolved.toml"), unshipped),
+                      tmp_path, resume=True)
         assert again.counters == data["counters"]
         model = read_checkpoint(tmp_path / "checkpoint.pt", "ata_hrl")["model"]
         assert model.keys() == data["model"].keys()
