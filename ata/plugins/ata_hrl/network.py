@@ -132,8 +132,9 @@ class StepScorer(nn.Module):
     def _legal_hidden(self, feats: torch.Tensor, cand_h: torch.Tensor, ctx: torch.Tensor,
                       legal: torch.Tensor) -> torch.Tensor:
         """The last hidden layer (E, N, h) at the legal candidates, zero elsewhere. Each row of
-        a matrix product on CPU comes out the same whatever the number of rows from 3 on (not
-        at 1 or 2 rows), so the legal rows are padded to at least 3 with copies of the first
+        a matrix product on CPU comes out the same whatever the number of rows from a few on
+        (not at 1 to 3 rows on some CPUs), so the legal rows are padded to at least MIN_ROWS
+        with copies of the first
         (tests/test_ata_hrl.py checks that the logits do not change). The output layer, of one
         unit, gives a row a result that depends on the matrix's shape: it runs on the whole
         (E, N, h), as without `legal`."""
