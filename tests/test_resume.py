@@ -162,6 +162,23 @@ def test_ctrl_c_stops_at_once_saying_what_was_saved(tmp_path):
         f"--out {out} to go on")
 
 
+def test_a_stopped_process_pool_leaves_no_thread_behind():
+    # stopped mid-way (Ctrl-C, an error), the pool's manager thread must be gone before the
+    # executor returns: left winding down, it races Python's exit hook on its wake-up pipe,
+    # which then prints "Exception ignored ... Bad file descriptor" after the interrupt message
+    import threading
+    from concurrent.futures.process import _ExecutorManagerThread
+
+    from ata.runtime.executors import ProcessExecutor
+
+    results = ProcessExecutor(2).run(time.sleep, [0, 30, 30, 30])
+    assert next(results) == (0, None)
+    t0 = time.time()
+    results.close()
+    assert time.time() - t0 < 10
+    assert not [t for t in threading.enumerate() if isinstance(t, _ExecutorManagerThread)]
+
+
 def ata_run(out: Path, *extra: str) -> subprocess.Popen:
     from ata.experiment.runner import BASELINE_MISSION   # greedy, on-event reallocation
     return subprocess.Popen([sys.executable, "-c", "from ata.cli import app; app()", "run",

@@ -75,8 +75,11 @@ class ProcessExecutor(Executor):
         pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
                                    initializer=_die_with_parent, initargs=(os.getpid(),))
         finished = False
+        manager = None
         try:
             pending = {pool.submit(fn, unit): i for i, unit in enumerate(units)}
+            # the pool's manager thread (started by the first submit); shutdown forgets it
+            manager = getattr(pool, "_executor_manager_thread", None)
             while pending:
                 done, _ = wait(pending, return_when=FIRST_COMPLETED)
                 for future in done:
@@ -90,13 +93,12 @@ class ProcessExecutor(Executor):
                 for process in list(getattr(pool, "_processes", {}).values()):
                     process.terminate()
             pool.shutdown(wait=finished, cancel_futures=True)
-            if not finished:
-                # the pool's manager thread closes its wake-up pipe as it winds down; let it
-                # finish here, or Python's exit hook may write to that pipe as it is closed
-                # (CPython 3.11: "Exception ignored ... Bad file descriptor" after a Ctrl-C)
-                manager = getattr(pool, "_executor_manager_thread", None)
-                if manager is not None:
-                    manager.join(timeout=5)
+            if not finished and manager is not None:
+                # the manager thread closes its wake-up pipe as it winds down; let it finish
+                # here, or Python's exit hook may write to that pipe while it is being closed
+                # (CPython 3.11: "Exception ignored ... Bad file descriptor" after a Ctrl-C).
+                # Taken before shutdown, which drops the pool's reference when it does not wait
+                manager.join(timeout=5)
 
 
 def _die_with_parent(parent: int) -> None:
