@@ -14,10 +14,26 @@ import pytest
 
 from ata import hookimpl
 from ata.core.kernel import Simulation
-from ata.experiment.runner import BASELINE_MISSION, load_session
+from ata.experiment.runner import BASELINE_MISSION, load_session, training_mission_for
 from ata.core.state import Allocation
 from ata.model import tables
 from ata.plugins.policies import milp as M
+
+
+# -- a tiny team for ATA-HRL's trainer and components (test_ata_hrl*.py) -----------------------
+
+HRL_TINY = ["mission.setting='custom'", "mission.humans=3", "mission.robots=4", "mission.tasks=12",
+            "mission.horizon_s=600", "ata_hrl.batch_size=2", "ata_hrl.samples=2",
+            "ata_hrl.ita_steps=2", "ata_hrl.ctr_steps=2", "ata_hrl.aux_steps=3",
+            "ata_hrl.aux_batches=1", "ata_hrl.eval_every=1", "ata_hrl.eval_scenarios=2",
+            "ata_hrl.checkpoint_every=1", "ata_hrl.d_model=16", "ata_hrl.hidden=16",
+            "ata_hrl.recon_hidden=8", "ata_hrl.status_steps=3", "ata_hrl.status_batches=1",
+            "ata_hrl.status_hidden=8", "ata_hrl.status_levels=['high']"]
+
+
+def hrl_session(*extra, plugins=("ctr", "aux")):
+    """The ATA-HRL training mission of `plugins` on the tiny team, with `extra` overrides."""
+    return load_session(str(training_mission_for(list(plugins))), [*HRL_TINY, *extra])
 
 BASE = 1000.0
 AIR, GROUND = 0, 1

@@ -465,37 +465,6 @@ def test_a_second_run_on_a_folder_in_use_is_refused_naming_the_first(cli, tiny, 
     assert (out / "results.csv").exists() and not (out / ".ata-lock").exists()
 
 
-@pytest.mark.skipif(os.name != "posix", reason="flock and signals")
-def test_a_run_under_way_keeps_a_second_one_out(cli, tmp_path):
-    """A real `ata run` process holds its folder: a second run on it is refused (exit 2)
-    naming the first, and the folder is free again once the first is stopped."""
-    import signal
-    import time
-
-    out = tmp_path / "both"
-    first = subprocess.Popen([sys.executable, "-c", "from ata.cli import app; app()", "run",
-                              "builtin:greedy", "-q", "--set", "mission.scenarios=2000",
-                              "--chunk-size", "20", "-o", str(out)],
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-    try:
-        deadline = time.time() + 120
-        while not (out / ".ata-lock").exists() or \
-                str(first.pid) not in (out / ".ata-lock").read_text():
-            assert first.poll() is None and time.time() < deadline, first.stderr.read()
-            time.sleep(0.05)
-        second = cli("run", "builtin:greedy", "-q", "--set", "mission.seed=5", "-o", out)
-        assert_user_error(second, f"--out: {out} is in use by another run (pid {first.pid}, "
-                                  "started ", "run builtin:greedy -q")
-    finally:
-        first.send_signal(signal.SIGINT)
-        first.wait(timeout=60)
-    assert first.returncode == 130, first.stderr.read()
-    assert not (out / ".ata-lock").exists()
-    assert not (out / "mission.resolved.toml").exists()       # the first run wrote no result
-    assert json.loads((out / "plan.json").read_text())["scenarios"] == 2000
-
-
 @pytest.mark.parametrize("command", ["run", "eval"])
 def test_run_and_eval_refuse_a_training_run_folder(cli, tiny, tmp_path, command):
     from ata.training import TrainRun
@@ -507,14 +476,3 @@ def test_run_and_eval_refuse_a_training_run_folder(cli, tiny, tmp_path, command)
                                              "training run (log.csv); choose another folder")
     assert (folder / "mission.resolved.toml").read_text() == before
     assert sorted(p.name for p in folder.iterdir()) == ["log.csv", "mission.resolved.toml"]
-
-
-def test_show_takes_a_built_in_mission_and_writes_under_the_runs_folder(cli, tmp_path,
-                                                                        monkeypatch):
-    pytest.importorskip("matplotlib")
-    monkeypatch.setenv("ATA_RUNS", str(tmp_path / "runs"))
-    result = cli("show", "builtin:greedy", "-n", "0")
-    assert result.exit_code == 0, result.output
-    assert "greedy: scenario 0 (seed 0): score" in flat(result.output)
-    assert sorted(p.name for p in (tmp_path / "runs" / "show-greedy-0").glob("*.png")) == [
-        "show_humans.png", "show_map.png", "show_timeline.png"]

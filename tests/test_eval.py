@@ -1,5 +1,5 @@
-"""`ata eval` and `ata report`: suites, validation before work, held-out seeds, executors that
-cannot change a number, the MILP solution cache, bootstrap intervals, tables and figures."""
+"""`ata eval`: suites, validation before work, held-out seeds, executors that cannot change a
+number, the MILP solution cache. `ata report`'s tests are in test_report_figures.py."""
 
 from __future__ import annotations
 
@@ -14,15 +14,11 @@ import pytest
 
 from _support import flat, tiny_data
 from ata.experiment import evaluate as ev
-from ata.experiment import report as rep
-from ata.experiment import results
 from ata.runtime.cache import cache_dir, run_cache
 from ata.core.errors import MissionError
 from ata.runtime.executors import ProcessExecutor, SerialExecutor
 from ata import hookimpl
 from ata.core.kernel import Simulation
-from ata.experiment.evaluate import CORE_COLUMNS
-from ata.experiment.runlog import write_csv
 from ata.experiment.runner import BASELINE_MISSION, load_session, run_mission
 from ata.plugins.policies import milp as M
 
@@ -358,138 +354,6 @@ def test_milp_eval_rows_same_with_and_without_cache(cli, tmp_path):
     strip = [[{k: v for k, v in r.items() if k not in ("wall_s", "milp_solve_s")} for r in rows]
              for rows in outs]
     assert strip[0] == strip[1] == strip[2]
-
-
-# -- the report ---------------------------------------------------------------------------------
-def test_bootstrap_ci_known_answers():
-    assert results.bootstrap_ci(np.full(50, 3.5)) == (3.5, 3.5, 3.5)
-    mean, low, high = results.bootstrap_ci([7.0])
-    assert mean == low == high == 7.0
-    assert all(math.isnan(x) for x in results.bootstrap_ci([]))
-    x = np.random.default_rng(1).normal(10.0, 2.0, 4000)
-    mean, low, high = results.bootstrap_ci(x)
-    half = 1.959964 * x.std(ddof=1) / math.sqrt(x.size)
-    assert mean == pytest.approx(x.mean())
-    assert low == pytest.approx(mean - half, abs=0.15 * half)
-    assert high == pytest.approx(mean + half, abs=0.15 * half)
-    assert results.bootstrap_ci(x) == (mean, low, high)        # a fixed seed: the same every time
-
-
-def test_beat_probability():
-    assert results.beat_probability([10, 20, 30, 40], [5, 20, 35, 10]) == 0.625
-    assert results.beat_probability([1, 1], [1, 1]) == 0.5
-    assert math.isnan(results.beat_probability([], []))
-
-
-
-
-def write_results(path: Path) -> None:
-    """ATA-HRL, greedy and w/o.AUX at settings a and b, three levels, four scenarios; greedy's
-    rows at (a, low) are written in reverse order, so pairs must be matched by scenario id."""
-    rows = []
-    scores = {"ATA-HRL": [10, 20, 30, 40], "greedy": [5, 20, 35, 10], "w/o.AUX": [0, 0, 50, 50]}
-    for method, base in scores.items():
-        for setting in ("a", "b"):
-            for k, level in enumerate(("low", "medium", "high")):
-                block = []
-                for i, s in enumerate(base):
-                    score = s - 2 * k if setting == "a" else s + 1
-                    block.append({"method": method, "setting": setting, "uncertainty": level,
-                                  "scenario": 100 + i, "seed": 0, "score": score,
-                                  "upper_bound": 100.0, "fraction_of_u": score / 100.0,
-                                  "classified_share": 0.5, "reallocations": 1, "wall_s": 0.1})
-                if (method, setting, level) == ("greedy", "a", "low"):
-                    block.reverse()
-                rows += block
-    write_csv(path, CORE_COLUMNS, rows)
-
-
-def test_report_table_and_probabilities(tmp_path):
-    write_results(tmp_path / "results.csv")
-    report = rep.summarize(results.read_results(tmp_path))
-    assert report.reference == "ATA-HRL"
-    assert report.groups() == [(s, lv) for s in "ab" for lv in ("low", "medium", "high")]
-    cells = {(c.method, c.setting, c.level): c for c in report.cells}
-    assert cells[("greedy", "a", "low")].beats == 0.625      # 1 + 0.5 + 0 + 1 of 4
-    assert cells[("w/o.AUX", "a", "low")].beats == 0.5       # 1 + 1 + 0 + 0 of 4
-    assert math.isnan(cells[("ATA-HRL", "a", "low")].beats)
-    assert cells[("ATA-HRL", "b", "high")].mean == 26.0
-    assert cells[("greedy", "a", "low")].fraction_of_u == pytest.approx(0.175)
-    other = rep.summarize(results.read_results(tmp_path), reference="greedy")
-    flipped = {(c.method, c.setting, c.level): c for c in other.cells}
-    assert flipped[("ATA-HRL", "a", "low")].beats == 0.375
-    # the paired difference, matched by scenario id (greedy's rows are reversed at (a, low)):
-    # ATA-HRL - greedy = (10 - 5, 20 - 20, 30 - 35, 40 - 10) = (5, 0, -5, 30), mean 7.5, its
-    # bootstrap CI within the differences' range
-    mean, low, high = cells[("greedy", "a", "low")].diff
-    assert mean == 7.5 and -5.0 <= low < mean < high <= 30.0
-    assert all(math.isnan(x) for x in cells[("ATA-HRL", "a", "low")].diff)
-    header, rows = rep.table_rows(report, "a", "low")
-    assert "ATA-HRL - method, paired [95% CI]" in header
-    assert rows[1][6].startswith("+7.5 [")
-
-
-def test_report_command_writes_markdown_and_figures(cli, tmp_path):
-    pytest.importorskip("matplotlib")
-    write_results(tmp_path / "results.csv")
-    res = cli("report", tmp_path)
-    assert res.exit_code == 0, res.output
-    text = flat(res.output)
-    assert "setting a, low uncertainty" in text and "P(ATA-HRL beats)" in text
-    assert "0.625" in text
-    md = (tmp_path / "report.md").read_text()
-    assert "## Setting b, high uncertainty" in md
-    assert "| greedy | 4 | 17.5 [" in md and "| 0.625 |" in md
-    figs = sorted(p.name for p in tmp_path.glob("fig_*"))
-    assert figs == sorted(f"{stem}.{ext}" for stem in ("fig_setting_a", "fig_setting_b",
-                                                       "fig_ablations", "fig_paired")
-                          for ext in ("png", "svg"))
-    assert all((tmp_path / f).stat().st_size > 1000 for f in figs)
-
-
-def test_report_options_and_errors(cli, tmp_path):
-    write_results(tmp_path / "results.csv")
-    res = cli("report", tmp_path, "--no-figures", "--reference", "greedy")
-    assert res.exit_code == 0, res.output
-    assert "P(greedy beats)" in flat(res.output)
-    assert not list(tmp_path.glob("fig_*"))
-    res = cli("report", tmp_path, "--no-figures", "--reference", "nobody")
-    assert res.exit_code == 2 and "no method 'nobody'" in flat(res.output)
-    res = cli("report", tmp_path / "missing")
-    assert res.exit_code == 2 and "no such results file" in flat(res.output)
-
-
-def test_report_skips_absent_figures(tmp_path):
-    pytest.importorskip("matplotlib")
-    write_results(tmp_path / "all.csv")
-    with open(tmp_path / "all.csv", newline="") as f:
-        rows = [r for r in csv.DictReader(f) if r["setting"] == "a" and r["method"] != "w/o.AUX"]
-    write_csv(tmp_path / "results.csv", CORE_COLUMNS, rows)
-    rep.write_report(tmp_path)
-    assert sorted(p.name for p in tmp_path.glob("fig_*")) == ["fig_paired.png",
-                                                             "fig_paired.svg",
-                                                             "fig_setting_a.png",
-                                                             "fig_setting_a.svg"]
-
-
-def test_report_reads_several_evaluations_together(cli, tmp_path):
-    write_results(tmp_path / "all.csv")
-    with open(tmp_path / "all.csv", newline="") as f:
-        rows = list(csv.DictReader(f))
-    for name, keep in (("one", lambda r: r["method"] != "greedy"),
-                       ("two", lambda r: r["method"] == "greedy")):
-        (tmp_path / name).mkdir()
-        write_csv(tmp_path / name / "results.csv", CORE_COLUMNS, [r for r in rows if keep(r)])
-    merged = rep.summarize(results.read_results([tmp_path / "one", tmp_path / "two"]))
-    whole = rep.summarize(results.read_results(tmp_path / "all.csv"))
-    key = lambda c: (c.method, c.setting, c.level)  # noqa: E731
-    assert sorted(map(key, merged.cells)) == sorted(map(key, whole.cells))
-    assert {key(c): c.beats for c in merged.cells if c.method == "greedy"} == \
-        {key(c): c.beats for c in whole.cells if c.method == "greedy"}
-    res = cli("report", tmp_path / "one", tmp_path / "two", "--no-figures")
-    assert res.exit_code == 0 and (tmp_path / "one" / "report.md").exists()
-    res = cli("report", tmp_path / "one", tmp_path / "one", "--no-figures")
-    assert res.exit_code == 2 and f"{tmp_path / 'one'}: is named twice" in flat(res.output)
 
 
 def test_run_takes_a_cache_folder_too(cli, tmp_path):

@@ -9,7 +9,7 @@ from ata.core.kernel import Simulation
 from ata.core.state import Observation
 from ata.experiment.runner import BASELINE_MISSION, load_session
 from ata.model import tables
-from ata.model.fatigue import BELIEF_KEYS, belief_from, individual
+from ata.model.fatigue import belief_from, individual
 from ata.model.team import HumanConstants
 from ata.plugins.filter import FilterReconstructor, noise_variance, prior_grid
 from ata.testing import check_component

@@ -1,5 +1,6 @@
 """Meta-tests, after datasette's: every hook is documented with its exact signature in
-docs/plugins.md, and the kernel calls every phase hook as often as the docs say."""
+docs/plugins.md, the kernel calls every phase hook as often as the docs say, and no Python file
+of the project is over 500 lines (docs/architecture.md)."""
 
 from __future__ import annotations
 
@@ -190,3 +191,12 @@ def test_the_kernel_calls_every_phase_hook_as_often_as_it_says():
     # the start-up hook and ata_trained_on (asked by `ata eval`) are tested where they are used
     assert set(spy.calls) | set(deciders.calls) | set(reference.calls) == set(HOOKS) - {
         "ata_register_components", "ata_trained_on"}
+
+
+def test_no_python_file_of_the_project_is_over_500_lines():
+    files = [p for top in ("ata", "tests", "benchmarks", "tools", "experiments")
+             for p in (ROOT / top).rglob("*.py")]
+    assert len(files) > 50
+    long = {str(p.relative_to(ROOT)): n for p in files
+            if (n := len(p.read_text(encoding="utf-8").splitlines())) > 500}
+    assert long == {}

@@ -8,7 +8,6 @@ import dataclasses
 import json
 import math
 import tomllib
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,7 +18,7 @@ from ata.core.errors import MissionError
 from ata.core.kernel import Simulation
 from ata.core.mission import seed_hash
 from ata.core.rng import BatchRNG, StreamRNG, decision_rng
-from ata.core.state import DecisionView, Observation
+from ata.core.state import DecisionView
 from ata.model.team import HumanConstants, RobotConstants
 from ata.experiment import evaluate as ev
 from ata.experiment import results as rep

@@ -16,6 +16,8 @@ from pathlib import Path
 
 import pytest
 
+from _support import assert_user_error
+
 SUITE = """\
 [suite]
 name = "small"
@@ -350,3 +352,34 @@ def test_the_phase_loop_resumes_a_killed_run_to_the_same_weights_and_log(tmp_pat
     assert torch.equal(again.x, whole.x) and again.report["counters"] == whole.report["counters"]
     assert torch.equal(read_checkpoint(tmp_path / "broken" / "best.pt")["x"],
                        torch.tensor([10.0, 10.0]))
+
+
+@pytest.mark.skipif(os.name != "posix", reason="flock and signals")
+def test_a_run_under_way_keeps_a_second_one_out(cli, tmp_path):
+    """A real `ata run` process holds its folder: a second run on it is refused (exit 2)
+    naming the first, and the folder is free again once the first is stopped."""
+    import signal
+    import time
+
+    out = tmp_path / "both"
+    first = subprocess.Popen([sys.executable, "-c", "from ata.cli import app; app()", "run",
+                              "builtin:greedy", "-q", "--set", "mission.scenarios=2000",
+                              "--chunk-size", "20", "-o", str(out)],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline = time.time() + 120
+        while not (out / ".ata-lock").exists() or \
+                str(first.pid) not in (out / ".ata-lock").read_text():
+            assert first.poll() is None and time.time() < deadline, first.stderr.read()
+            time.sleep(0.05)
+        second = cli("run", "builtin:greedy", "-q", "--set", "mission.seed=5", "-o", out)
+        assert_user_error(second, f"--out: {out} is in use by another run (pid {first.pid}, "
+                                  "started ", "run builtin:greedy -q")
+    finally:
+        first.send_signal(signal.SIGINT)
+        first.wait(timeout=60)
+    assert first.returncode == 130, first.stderr.read()
+    assert not (out / ".ata-lock").exists()
+    assert not (out / "mission.resolved.toml").exists()       # the first run wrote no result
+    assert json.loads((out / "plan.json").read_text())["scenarios"] == 2000

@@ -270,3 +270,14 @@ def test_mission_file_is_replayed_too(cli, tmp_path):
     assert result.exit_code == 0, result.output
     assert "the same score as the run" not in result.output
     assert (out / "show_map.png").is_file()
+
+
+def test_show_takes_a_built_in_mission_and_writes_under_the_runs_folder(cli, tmp_path,
+                                                                        monkeypatch):
+    pytest.importorskip("matplotlib")
+    monkeypatch.setenv("ATA_RUNS", str(tmp_path / "runs"))
+    result = cli("show", "builtin:greedy", "-n", "0")
+    assert result.exit_code == 0, result.output
+    assert "greedy: scenario 0 (seed 0): score" in flat(result.output)
+    assert sorted(p.name for p in (tmp_path / "runs" / "show-greedy-0").glob("*.png")) == [
+        "show_humans.png", "show_map.png", "show_timeline.png"]
