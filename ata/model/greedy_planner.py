@@ -290,16 +290,20 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
         combo0 = r_type[b_all, rs] * 2
 
         # best human classifier for each (quality, difficulty), given the plan so far
-        f_f = belief.at(hours + np.maximum(human_free - now, 0) / 3600.0)
         # (H, A, 12): the humans first, so that the choice among them is an elementwise max
         # over H contiguous slices (argmax along a short axis is several times slower); on
         # ties the first human, as argmax: the largest H - h where net_h is the best. A
-        # human's expected points per combination change only when the human's time does
+        # human's fatigue and expected points per combination change only when the human's
+        # time does: after the first step, only those humans' are computed (elementwise, the
+        # same numbers as over all)
         if gain is None:
+            f_f = belief.at(hours + np.maximum(human_free - now, 0) / 3600.0)
             gain = _human_gain((eta * f_f * lam).T, f_d, points12)
         elif touched_b.size:
-            gain[touched_h, touched_b] = _human_gain((eta * f_f * lam)[touched_b, touched_h],
-                                                     f_d, points12)
+            tb, th = touched_b, touched_h
+            f_t = belief.at(hours[tb, th] + np.maximum(human_free[tb, th] - now, 0) / 3600.0,
+                            rows=(tb, th))
+            gain[th, tb] = _human_gain(eta[tb, th] * f_t * lam[tb, th], f_d, points12)
         delay = np.maximum(human_free - t_free[:, None], 0.0).T[:, :, None]
         net_h = gain - s.human_time_cost * (t_bar + delay)
         best = np.maximum.reduce(net_h, axis=0)                                 # (A, 12)
