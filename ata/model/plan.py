@@ -292,11 +292,16 @@ def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None
         t_bar = tables.T_BAR[q, dd]
         done = np.where(by_human, begin + t_bar, arr)
         # fatigue at the start: the belief at the working hours now, plus the human busy
-        # until then
-        f_f = belief.at(start.hours[b, ch] + np.maximum(human_free[b, ch] - start.now, 0)
-                        / 3600.0, rows=(b, ch))
-        p_ok = np.where(cls >= 0, 0.5 + start.eta[b, ch] * f_f * start.lam[b, ch]
-                        * tables.F_D[q, dd], tables.P_RC[q, dd])
+        # until then; read for the POIs a human classifies alone (elementwise: the same
+        # numbers), the others' success the robot's own
+        p_ok = tables.P_RC[q, dd]
+        hc = np.nonzero(cls >= 0)[0]
+        if hc.size:
+            kb, kh = b[hc], ch[hc]
+            f_f = belief.at(start.hours[kb, kh] + np.maximum(human_free[kb, kh] - start.now, 0)
+                            / 3600.0, rows=(kb, kh))
+            p_ok[hc] = (0.5 + start.eta[kb, kh] * f_f * start.lam[kb, kh]
+                        * tables.F_D[q[hc], dd[hc]])
         counted = in_time & (done <= start.horizon)
         expected_at[bp] = np.where(counted, tables.expected_points(points[bp], p_ok), 0.0)
         arrival_at[bp] = np.where(in_time, arr, np.inf)
