@@ -104,6 +104,12 @@ class FatigueBelief:
             f = (w * individual(hours[..., None], on, sl, self.floor)).sum(-1)
         return np.clip(f + off, self.floor, 1.0)
 
+    def ahead(self, hours: np.ndarray, free: np.ndarray, now: float,
+              rows: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+        """The estimate of F_f of humans at working time `hours` now once they are free at
+        `free` (seconds; now if earlier): `at` the hours plus the time booked until then."""
+        return self.at(hours + np.maximum(free - now, 0) / 3600.0, rows)
+
     def take(self, rows: np.ndarray) -> "FatigueBelief":
         """The belief of a sub-batch of scenarios (or of plans: rows may repeat)."""
         return FatigueBelief(self.onset[rows], self.slope[rows], self.weight[rows],

@@ -297,13 +297,12 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
         # time does: after the first step, only those humans' are computed (elementwise, the
         # same numbers as over all)
         if gain is None:
-            f_f = belief.at(hours + np.maximum(human_free - now, 0) / 3600.0)
+            f_f = belief.ahead(hours, human_free, now)
             gain = _human_gain((eta * f_f * lam).T, f_d, points12)
         elif touched_b.size:
             tb, th = touched_b, touched_h
-            f_t = belief.at(hours[tb, th] + np.maximum(human_free[tb, th] - now, 0) / 3600.0,
-                            rows=(tb, th))
-            gain[th, tb] = _human_gain(eta[tb, th] * f_t * lam[tb, th], f_d, points12)
+            f_f = belief.ahead(hours[tb, th], human_free[tb, th], now, rows=(tb, th))
+            gain[th, tb] = _human_gain(eta[tb, th] * f_f * lam[tb, th], f_d, points12)
         delay = np.maximum(human_free - t_free[:, None], 0.0).T[:, :, None]
         net_h = gain - s.human_time_cost * (t_bar + delay)
         best = np.maximum.reduce(net_h, axis=0)                                 # (A, 12)

@@ -88,8 +88,8 @@ class HumanLoad:
         f_d = tables.F_D[q, d][..., None]
         if greedy:
             if self._fatigue_greedy is None:
-                self._fatigue_greedy = start.belief.at(
-                    start.hours + np.maximum(self.free - start.now, 0) / 3600.0)[:, None, :]
+                self._fatigue_greedy = start.belief.ahead(start.hours, self.free,
+                                                          start.now)[:, None, :]
             f_f = self._fatigue_greedy[sel]
             f_w = u = None
             p = 0.5 + self._eta_lam[sel] * f_f * f_d

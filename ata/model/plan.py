@@ -272,7 +272,6 @@ def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None
         k = dist.argmin(axis=1)
         a_all = np.arange(b.size)
         bp, d = cand[a_all, k], dist[a_all, k]
-        p = bp - b * P
         nav = navigator[bp]
         navigated = nav >= 0
         nav_h = np.maximum(nav, 0)
@@ -298,8 +297,7 @@ def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None
         hc = np.nonzero(cls >= 0)[0]
         if hc.size:
             kb, kh = b[hc], ch[hc]
-            f_f = belief.at(start.hours[kb, kh] + np.maximum(human_free[kb, kh] - start.now, 0)
-                            / 3600.0, rows=(kb, kh))
+            f_f = belief.ahead(start.hours[kb, kh], human_free[kb, kh], start.now, rows=(kb, kh))
             p_ok[hc] = (0.5 + start.eta[kb, kh] * f_f * start.lam[kb, kh]
                         * tables.F_D[q[hc], dd[hc]])
         counted = in_time & (done <= start.horizon)
