@@ -1,5 +1,5 @@
-"""The training-throughput benchmark runs (a tiny batch): it is not a timed test, but a
-benchmark that no longer runs would leave docs/training.md's figures without their command."""
+"""The benchmarks run (tiny batches): these are not timed tests, but a benchmark that no longer
+runs would leave the figures of docs/training.md and docs/benchmarks.md without their command."""
 
 import subprocess
 import sys
@@ -43,3 +43,13 @@ def test_the_fast_benchmark_driver_imports_every_figure():
                          capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
     assert "--quick" in out.stdout
+
+
+def test_the_filter_benchmark_reports_both_methods_and_their_ratio():
+    out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_filter.py"),
+                          "--scenarios", "6", "--settings", "a", "--repeats", "1"],
+                         capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "6 scenarios at high, CPU seconds (least of 1)" in out.stdout
+    assert "(a) greedy " in out.stdout and "greedy + filter " in out.stdout
+    assert out.stdout.rstrip().endswith("x")
