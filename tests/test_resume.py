@@ -358,9 +358,6 @@ def test_the_phase_loop_resumes_a_killed_run_to_the_same_weights_and_log(tmp_pat
 def test_a_run_under_way_keeps_a_second_one_out(cli, tmp_path):
     """A real `ata run` process holds its folder: a second run on it is refused (exit 2)
     naming the first, and the folder is free again once the first is stopped."""
-    import signal
-    import time
-
     out = tmp_path / "both"
     first = subprocess.Popen([sys.executable, "-c", "from ata.cli import app; app()", "run",
                               "builtin:greedy", "-q", "--set", "mission.scenarios=2000",
