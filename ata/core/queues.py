@@ -33,14 +33,17 @@ class Queue:
         elif names != self._columns:
             raise ValueError(f"queue {self.name!r} takes columns {', '.join(self._columns)}; "
                              f"got {', '.join(names)}")
-        arrays = {k: np.atleast_1d(np.asarray(v)) for k, v in columns.items()}
-        n = max(a.shape[0] for a in arrays.values())
-        for k, a in arrays.items():
-            if a.ndim != 1 or a.shape[0] not in (1, n):
-                raise ValueError(f"queue {self.name!r}: column {k!r} has shape {a.shape}; "
-                                 f"expected ({n},)")
-            if a.shape[0] != n:
-                arrays[k] = np.repeat(a, n)
+        arrays = {k: v if type(v) is np.ndarray and v.ndim == 1 else np.atleast_1d(np.asarray(v))
+                  for k, v in columns.items()}
+        lengths = {a.shape[0] for a in arrays.values()}
+        n = max(lengths)
+        if len(lengths) > 1 or any(a.ndim != 1 for a in arrays.values()):
+            for k, a in arrays.items():
+                if a.ndim != 1 or a.shape[0] not in (1, n):
+                    raise ValueError(f"queue {self.name!r}: column {k!r} has shape {a.shape}; "
+                                     f"expected ({n},)")
+                if a.shape[0] != n:
+                    arrays[k] = np.repeat(a, n)
         if n:
             self._parts.append(arrays)
 
@@ -72,5 +75,7 @@ def last_per_key(*keys: np.ndarray) -> np.ndarray:
     n = keys[0].shape[0]
     order = np.lexsort(tuple(reversed(keys)))           # by key, stable: rows in order per key
     k = np.stack([key[order] for key in keys])
-    last = np.r_[np.any(k[:, 1:] != k[:, :-1], axis=0), True] if n else np.zeros(0, bool)
+    last = np.ones(n, dtype=bool)
+    if n:
+        np.any(k[:, 1:] != k[:, :-1], axis=0, out=last[:-1])
     return order[last]

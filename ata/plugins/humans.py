@@ -205,7 +205,10 @@ class HumanModel:
             # first come, first served; ties: classifications first, then the lower index
             order = np.lexsort((entity, is_nav, ready, key))
             ks = key[order]
-            first = order[np.r_[True, ks[1:] != ks[:-1]]]
+            lead = np.empty(ks.size, dtype=bool)      # each owner's first item in the order
+            lead[0] = True
+            np.not_equal(ks[1:], ks[:-1], out=lead[1:])
+            first = order[lead]
             sb, sh = b[first], owner[first]
             start = np.maximum(h.busy_until[sb, sh], ready[first])
             ok = start < t1
@@ -213,6 +216,10 @@ class HumanModel:
                 return
             first, sb, sh, start = first[ok], sb[ok], sh[ok], start[ok]
             self._start_items(sim, sb, sh, start, entity[first], is_nav[first])
+            # only a human whose new item ends within the tick may start another: the others
+            # were busy past t1 already, or had nothing ready
+            if not (h.busy_until[sb, sh] < t1).any():
+                return
 
     def _start_items(self, sim: SimState, b: np.ndarray, hh: np.ndarray, start: np.ndarray,
                      entity: np.ndarray, is_nav: np.ndarray) -> None:

@@ -59,8 +59,11 @@ def nearest(sim: SimState, free: np.ndarray) -> np.ndarray:
     eb = fb[ei]
     diff = t.pos[eb, ep] - r.pos[eb, fr[ei]]                                   # (m, 2)
     dist = np.hypot(diff[:, 0], diff[:, 1])
-    starts = np.flatnonzero(np.r_[True, ei[1:] != ei[:-1]])
-    nearest_d = np.repeat(np.minimum.reduceat(dist, starts), np.diff(np.r_[starts, ei.size]))
+    new_row = np.empty(ei.size, dtype=bool)
+    new_row[0] = True
+    np.not_equal(ei[1:], ei[:-1], out=new_row[1:])
+    starts = np.flatnonzero(new_row)
+    nearest_d = np.minimum.reduceat(dist, starts)[np.cumsum(new_row) - 1]
     best = np.minimum.reduceat(np.where(dist == nearest_d, ep, open_.shape[1]), starts)
     out[eb[starts], fr[ei[starts]]] = best
     return out
