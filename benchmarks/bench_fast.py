@@ -6,11 +6,13 @@ Usage: python benchmarks/bench_fast.py [--quick] [--only 1,2,...]
    wall time (--quick: 50 scenarios per cell, one `ata eval` unit each as in the full suite,
    extrapolated tenfold to the 500 of the suite);
 2. ATA-HRL's CPU time per scenario over greedy's, settings (a) and (b), in `ata run`'s batches;
-3. greedy with on-event reallocation, batch 500 over batch 1 throughput, (a) and (b);
+3. greedy with on-event reallocation, batch 500 over batch 1 throughput, (a) and (b), each side
+   the best of 2 (--quick) or 3 runs made in alternation;
 4. ATA-HRL's (a) training recipe (ata/missions/train_ata_hrl.toml): a few steps of each part
    timed, extrapolated to the recipe's step counts;
 5. peak memory of setting (b) at batch 500 (greedy), and its growth with the number of POIs;
-6. the gym vector env against single envs, setting (a).
+6. the gym vector env against single envs, setting (a), each side the least time of 2
+   (--quick) or 3 runs made in alternation.
 
 Each figure has one implementation, in the benchmark it belongs to (bench_suite, bench_batches,
 bench_kernel, bench_training, bench_memory, bench_gym); this driver calls them. Figures are
@@ -44,9 +46,11 @@ ATA_HRL_B = HERE.parent / "examples" / "missions" / "ata_hrl_b.toml"
 # tenfold extrapolation holds; at 20 a cell the learned methods' batches are smaller and their
 # per-scenario cost higher (measured: the extrapolation came out several times too high)
 QUICK = {"suite": 50, "per_scenario": {"a": 100, "b": 50}, "single": 10, "repeats": 1,
-         "recipe": (10, 1, 1), "pois": [130, 260, 520], "poi_batch": 5, "gym_rounds": 2}
+         "recipe": (10, 1, 1), "pois": [130, 260, 520], "poi_batch": 5, "gym_rounds": 2,
+         "least_of": 2}
 FULL = {"suite": 500, "per_scenario": {"a": 500, "b": 200}, "single": 20, "repeats": 2,
-        "recipe": (50, 4, 2), "pois": [130, 260, 520, 1040], "poi_batch": 10, "gym_rounds": 5}
+        "recipe": (50, 4, 2), "pois": [130, 260, 520, 1040], "poi_batch": 10, "gym_rounds": 5,
+        "least_of": 3}
 SUMMARY: list[str] = []
 
 
@@ -92,16 +96,28 @@ def figure_per_scenario(cfg: dict) -> None:
 def figure_batch_and_memory(cfg: dict, do_batch: bool, do_memory: bool) -> None:
     """Figures 3 and 5 share the (b) batch-500 run: made in a child process, it gives both its
     throughput and its peak memory."""
+    n = cfg["least_of"] if do_batch else 1
     for setting in ("a", "b") if do_batch else ("b",):
-        big = bench_memory.isolated(setting, bench_memory.GREEDY_REALLOC, 500, 500)
+        # batch 500 and batch 1 in alternation, n times; each keeps its best rates (a run on a
+        # shared machine is only ever slowed by other work) and the highest memory peak
+        bigs, singles = [], []
+        for _ in range(n):
+            bigs.append(bench_memory.isolated(setting, bench_memory.GREEDY_REALLOC, 500, 500))
+            if do_batch:
+                singles.append(bench_kernel.measure(setting, bench_memory.GREEDY_REALLOC,
+                                                    cfg["single"], 1))
+        big = {k: max(r[k] for r in bigs) for k in ("rate", "cpu_rate", "rss_peak_mib",
+                                                      "rss_base_mib")}
+        big["wall_s"] = min(r["wall_s"] for r in bigs)
         if do_batch:
-            single = bench_kernel.measure(setting, bench_memory.GREEDY_REALLOC, cfg["single"], 1)
-            say(f"[3] ({setting}) greedy + on_event realloc: batch 1 {single.rate:,.0f} "
-                f"scenario-epochs/s, {single.cpu_rate:,.0f} per CPU second ({cfg['single']} "
-                f"scenarios), batch 500 {big['rate']:,.0f}, {big['cpu_rate']:,.0f} per CPU "
-                f"second ({big['wall_s']:.1f} s for 500, in a fresh process)")
-            say(f"(3) greedy batch 500 vs 1 ({setting}): {big['rate'] / single.rate:.1f}x "
-                f"(in CPU time {big['cpu_rate'] / single.cpu_rate:.1f}x) (goal >= 30x)",
+            rate, cpu_rate = max(r.rate for r in singles), max(r.cpu_rate for r in singles)
+            say(f"[3] ({setting}) greedy + on_event realloc, best of {n} alternating runs: "
+                f"batch 1 {rate:,.0f} scenario-epochs/s, {cpu_rate:,.0f} per CPU second "
+                f"({cfg['single']} scenarios), batch 500 {big['rate']:,.0f}, "
+                f"{big['cpu_rate']:,.0f} per CPU second ({big['wall_s']:.1f} s for 500, in a "
+                f"fresh process)")
+            say(f"(3) greedy batch 500 vs 1 ({setting}): {big['rate'] / rate:.1f}x "
+                f"(in CPU time {big['cpu_rate'] / cpu_rate:.1f}x) (goal >= 30x)",
                 summary=True)
         if do_memory and setting == "b":
             say(f"(5) peak memory, (b) greedy at batch 500: {big['rss_peak_mib'] / 1024:.2f} "
@@ -131,8 +147,9 @@ def figure_recipe(cfg: dict) -> None:
 
 def figure_gym(cfg: dict) -> None:
     r = bench_gym.vector_vs_single(bench_gym.TEAMS["(a) (H/R/P 6/8/60, T 30)"], 64,
-                                   cfg["gym_rounds"], 0)
-    say(f"[6] (a), 64 envs, {cfg['gym_rounds']} episode(s) each: single {r['single']:.1f} "
+                                   cfg["gym_rounds"], 0, repeats=cfg["least_of"])
+    say(f"[6] (a), 64 envs, {cfg['gym_rounds']} episode(s) each, least of {cfg['least_of']} "
+        f"alternating runs: single {r['single']:.1f} "
         f"episodes/s ({r['wall_single']:.1f} s, {r['cpu_single']:.1f} CPU s), vector "
         f"{r['vector']:.1f} ({r['wall_vector']:.1f} s, {r['cpu_vector']:.1f} CPU s)")
     say(f"(6) gym vector env vs 64 single envs (a): {r['ratio']:.1f}x (in CPU time "

@@ -53,3 +53,23 @@ def test_the_filter_benchmark_reports_both_methods_and_their_ratio():
     assert "6 scenarios at high, CPU seconds (least of 1)" in out.stdout
     assert "(a) greedy " in out.stdout and "greedy + filter " in out.stdout
     assert out.stdout.rstrip().endswith("x")
+
+
+def test_the_gym_benchmark_keeps_the_least_time_of_alternating_runs(monkeypatch):
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import bench_gym
+    # scripted runs, in call order: single, vector, single, vector (episodes/s, wall, CPU)
+    runs = iter([(4.0, 32.0, 30.0), (80.0, 1.6, 1.5), (8.0, 16.0, 16.0), (64.0, 2.0, 1.2)])
+    sides = []
+
+    def fake(envs, rounds, seed):
+        sides.append(type(envs).__name__)
+        return next(runs)
+
+    monkeypatch.setattr(bench_gym, "episodes_per_second", fake)
+    r = bench_gym.vector_vs_single(str(bench_gym.SMALL_TEAM), 2, 1, 0, repeats=2)
+    assert sides == ["SyncVectorEnv", "CentralisedVectorEnv"] * 2
+    assert (r["wall_single"], r["wall_vector"]) == (16.0, 1.6)
+    assert (r["cpu_single"], r["cpu_vector"]) == (16.0, 1.2)
+    assert r["ratio"] == (128 / 1.6) / (128 / 16.0)
+    assert r["cpu_ratio"] == 16.0 / 1.2
