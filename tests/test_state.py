@@ -43,6 +43,18 @@ def test_last_per_key_keeps_the_latest_row_of_each_key():
     r = np.array([2, 2, 3, 2, 2])
     assert sorted(last_per_key(b, r).tolist()) == [2, 3, 4]
     assert last_per_key(np.zeros(0, int), np.zeros(0, int)).size == 0
+    assert last_per_key(np.array([4]), np.array([1])).tolist() == [0]
+
+
+def test_last_per_key_orders_by_the_keys_as_a_lexicographic_sort_does():
+    rng = np.random.default_rng(3)
+    for n in (2, 7, 50):
+        b, r = rng.integers(0, 4, n), rng.integers(0, 5, n)
+        # reference: the last row of each (b, r) in (b, r) order
+        last = {}
+        for i, key in enumerate(zip(b.tolist(), r.tolist())):
+            last[key] = i
+        assert last_per_key(b, r).tolist() == [last[k] for k in sorted(last)]
 
 
 def test_each_group_has_one_typed_owner_and_others_read_it_only():

@@ -71,11 +71,16 @@ def scatter(state: Any, rows: dict[str, np.ndarray], at: tuple[str, ...],
 
 
 def last_per_key(*keys: np.ndarray) -> np.ndarray:
-    """Indices of the last row of each distinct key (rows taken in order: the latest wins)."""
+    """Indices of the last row of each distinct key (rows taken in order: the latest wins), in
+    the order of the keys. Keys are non-negative integer columns (indices: scenario, robot)."""
     n = keys[0].shape[0]
-    order = np.lexsort(tuple(reversed(keys)))           # by key, stable: rows in order per key
-    k = np.stack([key[order] for key in keys])
+    if n <= 1:
+        return np.arange(n)
+    key = keys[0].astype(np.int64)
+    for k in keys[1:]:                                  # one key, ordered as the tuple of keys
+        key = key * (int(k.max()) + 1) + k
+    order = np.argsort(key, kind="stable")              # stable: rows in order per key
+    ks = key[order]
     last = np.ones(n, dtype=bool)
-    if n:
-        np.any(k[:, 1:] != k[:, :-1], axis=0, out=last[:-1])
+    np.not_equal(ks[1:], ks[:-1], out=last[:-1])
     return order[last]
