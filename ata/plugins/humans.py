@@ -271,19 +271,10 @@ class HumanModel:
     def _book(self, sim: SimState, b: np.ndarray, hh: np.ndarray, start: np.ndarray,
               end: np.ndarray) -> None:
         """Book [start, end) as busy time of the given (b, h) pairs (each pair at most once)."""
-        h, tick = self.state, sim.clock.tick_s
-        # the ticks each item overlaps, in a window of the widest item's span and a tick more
-        # on each side (against rounding in t / tick), shifted to fit the episode: the other
-        # ticks would add 0
-        n = self._edges.size
-        k0 = np.floor(np.minimum(start, n * tick) / tick).astype(np.int64) - 1   # an inf end
-        k1 = np.ceil(np.minimum(end, n * tick) / tick).astype(np.int64) + 1      # or start:
-        width = min(int(np.max(k1 - k0, initial=1)), n)                          # clamped
-        k = np.clip(k0, 0, n - width)[:, None] + np.arange(width)
-        edges = self._edges[k]
-        overlap = np.clip(np.minimum(end[:, None], edges + tick)
-                          - np.maximum(start[:, None], edges), 0.0, None)
-        h.busy_ticks[b[:, None], hh[:, None], k] += overlap
+        h = self.state
+        overlap = np.clip(np.minimum(end[:, None], self._edges + sim.clock.tick_s)
+                          - np.maximum(start[:, None], self._edges), 0.0, None)
+        h.busy_ticks[b, hh] += overlap
         h.booked_s[b, hh] += end - start
         h.busy_until[b, hh] = end
 
