@@ -67,9 +67,9 @@ def vector_vs_single(path: str, envs: int, rounds: int, seed: int,
             eps, w, c = episodes_per_second(env, rounds, seed)
             wall[side], cpu[side] = min(wall[side], w), min(cpu[side], c)
             episodes[side] = round(eps * w)        # the same episodes in every repeat
-    return {"single": episodes["single"] / wall["single"],
-            "vector": episodes["vector"] / wall["vector"],
-            "ratio": episodes["vector"] / wall["vector"] / (episodes["single"] / wall["single"]),
+    rate = {side: episodes[side] / wall[side] for side in wall}
+    return {"single": rate["single"], "vector": rate["vector"],
+            "ratio": rate["vector"] / rate["single"],
             "wall_single": wall["single"], "wall_vector": wall["vector"],
             "cpu_single": cpu["single"], "cpu_vector": cpu["vector"],
             "cpu_ratio": cpu["single"] / cpu["vector"]}

@@ -70,6 +70,14 @@ def scatter(state: Any, rows: dict[str, np.ndarray], at: tuple[str, ...],
         getattr(state, name)[index] = rows[column]
 
 
+def run_starts(sorted_keys: np.ndarray) -> np.ndarray:
+    """(n,) bool: where each run of equal keys begins in a sorted 1-D array of n >= 1 keys."""
+    out = np.empty(sorted_keys.size, dtype=bool)
+    out[0] = True
+    np.not_equal(sorted_keys[1:], sorted_keys[:-1], out=out[1:])
+    return out
+
+
 def last_per_key(*keys: np.ndarray) -> np.ndarray:
     """Indices of the last row of each distinct key (rows taken in order: the latest wins), in
     the order of the keys. Keys are non-negative integer columns (indices: scenario, robot)."""
@@ -80,7 +88,5 @@ def last_per_key(*keys: np.ndarray) -> np.ndarray:
     for k in keys[1:]:                                  # one key, ordered as the tuple of keys
         key = key * (int(k.max()) + 1) + k
     order = np.argsort(key, kind="stable")              # stable: rows in order per key
-    ks = key[order]
-    last = np.ones(n, dtype=bool)
-    np.not_equal(ks[1:], ks[:-1], out=last[:-1])
+    last = np.append(run_starts(key[order])[1:], True)  # a row before a new key is a last
     return order[last]

@@ -35,7 +35,7 @@ import numpy as np
 
 from ata import hookimpl
 from ata.core.settings import param
-from ata.core.queues import last_per_key, scatter
+from ata.core.queues import last_per_key, run_starts, scatter
 from ata.core.state import Allocation, Observation, SimState
 from ata.model import fatigue, tables, team
 from ata.model.retask import retasked_humans
@@ -204,11 +204,7 @@ class HumanModel:
             key = b * H + owner
             # first come, first served; ties: classifications first, then the lower index
             order = np.lexsort((entity, is_nav, ready, key))
-            ks = key[order]
-            lead = np.empty(ks.size, dtype=bool)      # each owner's first item in the order
-            lead[0] = True
-            np.not_equal(ks[1:], ks[:-1], out=lead[1:])
-            first = order[lead]
+            first = order[run_starts(key[order])]     # each owner's first item in the order
             sb, sh = b[first], owner[first]
             start = np.maximum(h.busy_until[sb, sh], ready[first])
             ok = start < t1

@@ -28,7 +28,7 @@ import numpy as np
 
 from ata import hookimpl
 from ata.core.settings import param
-from ata.core.queues import scatter
+from ata.core.queues import run_starts, scatter
 from ata.core.state import Allocation, Observation, SimState
 from ata.model import tables, team
 from ata.model.team import RobotConstants
@@ -59,9 +59,7 @@ def nearest(sim: SimState, free: np.ndarray) -> np.ndarray:
     eb = fb[ei]
     diff = t.pos[eb, ep] - r.pos[eb, fr[ei]]                                   # (m, 2)
     dist = np.hypot(diff[:, 0], diff[:, 1])
-    new_row = np.empty(ei.size, dtype=bool)
-    new_row[0] = True
-    np.not_equal(ei[1:], ei[:-1], out=new_row[1:])
+    new_row = run_starts(ei)
     starts = np.flatnonzero(new_row)
     nearest_d = np.minimum.reduceat(dist, starts)[np.cumsum(new_row) - 1]
     best = np.minimum.reduceat(np.where(dist == nearest_d, ep, open_.shape[1]), starts)
