@@ -346,3 +346,39 @@ def test_later_rounds_of_the_rule_label_every_event_epoch_as_the_rule_decides():
     assert np.array_equal(second["taken"][prior], logit[prior] > 0)
     assert (prior & ~second["taken"]).any()                      # skipped events, labelled
     assert (second["weight"][~prior] == 0).all()                 # only they were turned over
+
+
+# --- the device of the updates ------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("phase", ["ita", "ctr"])
+def test_an_update_computes_on_the_device_its_network_is_on(phase, monkeypatch):
+    # the "meta" device holds shapes alone and refuses any CPU tensor beside its own: a loss
+    # that left one of its inputs on the CPU fails here, as it would on a GPU
+    import copy
+
+    from ata.plugins.ata_hrl.network import ConditionNet
+    from ata.plugins.ata_hrl.phases.policy import rewards
+    tr = build_trainer(session())
+    assert tr.trains_cond and tr.trains_tr
+    part = getattr(tr, phase)
+    part.start()
+    record, rec = tr.rollout(tr.mission_of("custom", 7), np.repeat(np.arange(2), 2), phase,
+                             train=True)
+    assert rec.ita if phase == "ita" else rec.tr, "the rollout recorded no decision to score"
+    R = rewards(record)
+    cpu_loss = part.loss(rec, R)
+    monkeypatch.setattr(ConditionNet, "rule_on", lambda self: False)   # reads a value: no meta
+    tr.net, tr.device = copy.deepcopy(tr.net).to("meta"), torch.device("meta")
+    loss = part.loss(rec, R)
+    loss.backward()
+    assert loss.device.type == "meta" and cpu_loss.device.type == "cpu"
+    assert loss.shape == cpu_loss.shape == ()
+
+
+def test_an_update_device_torch_cannot_use_is_refused_before_any_work():
+    with pytest.raises(MissionError, match="not a device"):
+        build_trainer(session("ata_hrl.device='tpu'"))
+    if not torch.cuda.is_available():
+        with pytest.raises(MissionError, match="sees no CUDA device"):
+            build_trainer(session("ata_hrl.device='cuda'"))

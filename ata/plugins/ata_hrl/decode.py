@@ -184,21 +184,45 @@ def trace_log_prob(net: AllocationNet, emb: dict[str, torch.Tensor], trace: Deco
                    residual: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
     """Sum over the decode's steps of each episode's log-probability of its choices, and of
     the entropies of the sub-decisions, both (E,), with gradient."""
-    E = emb["tasks"].shape[0]
-    logp = torch.zeros(E)
-    ent = torch.zeros(E)
+    E, dev = emb["tasks"].shape[0], emb["tasks"].device
+
+    def tensor(a: np.ndarray) -> torch.Tensor:             # on the network's device
+        return torch.from_numpy(a).to(dev)
+
+    logp = torch.zeros(E, device=dev)
+    ent = torch.zeros(E, device=dev)
     if trace.keep is not None:
         k = trace.keep
-        mask = torch.from_numpy(k["mask"])
-        logits = net.keep(torch.from_numpy(k["features"]), emb["tasks"],
-                          torch.from_numpy(k["prior"]), mask, residual)
+        mask = tensor(k["mask"])
+        logits = net.keep(tensor(k["features"]), emb["tasks"], tensor(k["prior"]), mask,
+                          residual)
         lsm = torch.log_softmax(logits, -1)
-        free = torch.from_numpy(k["decided"]) & (mask.sum(-1) > 1)
-        choice = torch.from_numpy(k["choice"].astype(np.int64))
+        free = tensor(k["decided"]) & (mask.sum(-1) > 1)
+        choice = tensor(k["choice"].astype(np.int64))
         logp = logp + torch.where(free, lsm.gather(-1, choice[..., None])[..., 0], 0.0).sum(-1)
         ent = ent - torch.where(free, (lsm.exp() * lsm.clamp(min=-30)).sum(-1), 0.0).sum(-1)
     if trace.n_steps == 0:
         return logp, ent
+    for kind in KINDS:
+        st = trace.stacked(kind)
+        feats = tensor(st["features"])                         # (S, E, N, F)
+        mask = tensor(st["mask"])
+        prior = tensor(st["prior"])
+        n = mask.shape[-1]
+        cand = net.candidates(kind, emb)[:, :n]                  # (E, N, d)
+        idx = {"robot": tensor(st["robot"]), "task": tensor(st["task"])}
+        ctx = step_context(kind, emb, idx)                      # (S, E, d)
+        logits = net.scorers[kind](feats, cand, ctx, prior, mask, residual)
+        lsm = torch.log_softmax(logits, -1)
+        choice = tensor(st["choice"]).long()
+        chosen = lsm.gather(-1, choice[..., None])[..., 0]
+        active = tensor(st["active"])
+        # a sub-decision with one legal choice carries no probability mass
+        free = (mask.sum(-1) > 1) & active
+        logp = logp + torch.where(free, chosen, 0.0).sum(0)
+        p = lsm.exp()
+        ent = ent + torch.where(free, -(p * lsm.clamp(min=-30)).sum(-1), 0.0).sum(0)
+    return logp, ent
     for kind in KINDS:
         st = trace.stacked(kind)
         feats = torch.from_numpy(st["features"])                 # (S, E, N, F)

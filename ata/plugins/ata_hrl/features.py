@@ -60,5 +60,6 @@ def seen_state(ctx: DecisionContext) -> dict[str, np.ndarray]:
     return feats
 
 
-def to_tensors(feats: dict[str, np.ndarray]) -> dict[str, torch.Tensor]:
-    return {k: torch.as_tensor(v, dtype=torch.float32) for k, v in feats.items()}
+def to_tensors(feats: dict[str, np.ndarray], device: torch.device | None = None
+               ) -> dict[str, torch.Tensor]:
+    return {k: torch.as_tensor(v, dtype=torch.float32, device=device) for k, v in feats.items()}

@@ -52,12 +52,12 @@ class NetConfig:
         return asdict(self)
 
 
-def sinusoid(n: int, d: int) -> torch.Tensor:
+def sinusoid(n: int, d: int, device: torch.device | None = None) -> torch.Tensor:
     """Positional embeddings for indices 0..n-1 (any team size)."""
-    pos = torch.arange(n, dtype=torch.float32)[:, None]
-    i = torch.arange(0, d, 2, dtype=torch.float32)
+    pos = torch.arange(n, dtype=torch.float32, device=device)[:, None]
+    i = torch.arange(0, d, 2, dtype=torch.float32, device=device)
     angle = pos / torch.pow(10000.0, i / d)
-    out = torch.zeros(n, d)
+    out = torch.zeros(n, d, device=device)
     out[:, 0::2] = torch.sin(angle)
     out[:, 1::2] = torch.cos(angle[:, : d // 2])
     return out
@@ -80,7 +80,8 @@ class Encoder(nn.Module):
         tokens = []
         for i, g in enumerate(GROUPS):
             x = feats[g]
-            tokens.append(self.lin[g](x) + self.type_emb.weight[i] + sinusoid(x.shape[1], self.d))
+            tokens.append(self.lin[g](x) + self.type_emb.weight[i]
+                          + sinusoid(x.shape[1], self.d, x.device))
         sizes = [t.shape[1] for t in tokens]
         out = self.net(torch.cat(tokens, 1))
         return dict(zip(GROUPS, torch.split(out, sizes, dim=1)))
@@ -221,7 +222,7 @@ def gather_rows(x: torch.Tensor, idx: torch.Tensor) -> torch.Tensor:
     """x (B, N, d), idx (..., B) -> (..., B, d): row idx[..., b] of x[b]."""
     B = x.shape[0]
     flat = idx.reshape(-1, B)
-    out = x[torch.arange(B)[None, :], flat.clamp(min=0)]
+    out = x[torch.arange(B, device=x.device)[None, :], flat.clamp(min=0)]
     return out.reshape(*idx.shape, x.shape[-1])
 
 

@@ -16,6 +16,7 @@ resume.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from typing import Any
 
@@ -64,6 +65,9 @@ class RunSettings:
                                 "per uncertainty level, with uncertainty_levels)")
     checkpoint_every: int = param(10, min=1, help="write checkpoint.pt every N steps")
     threads: int = param(1, min=1, max=256, help="torch CPU threads")
+    device: str = param("cpu", help="torch device of the ITA and CTR phases' updates (the "
+                        "log-probabilities, backward and Adam step): 'cpu', or 'cuda' for a GPU; "
+                        "the rollouts decode on the CPU, the other phases run there")
 
 
 @dataclass
@@ -111,6 +115,7 @@ class ATAHRLTrainer:
                              layers=settings.layers, hidden=settings.hidden,
                              z_dim=settings.z_dim, recon_hidden=settings.recon_hidden,
                              status_hidden=settings.status_hidden if self.trains_aux else 0)
+        self.device = update_device(settings.device, mission.source)
         torch.manual_seed(settings.seed)
         self.net = ATAHRLNet(self.cfg)
         self.policy_params = [p for n, p in self.net.named_parameters()
@@ -357,6 +362,29 @@ class ATAHRLTrainer:
         """The phase loop's validation: best.pt follows the expected points."""
         score, expected = self.evaluate(phase)
         return expected, {"eval_score": f"{score:.2f}", "eval_expected": f"{expected:.2f}"}
+
+
+def update_device(name: str, source: Any = None) -> torch.device:
+    """The device of ``[ata_hrl] device``, refused with a message if torch cannot use it. On a
+    GPU, torch's deterministic algorithms are switched on (and cuBLAS's workspace set for
+    them), so that a seed gives the same run on the same machine."""
+    try:
+        device = torch.device(name)
+    except RuntimeError:
+        device = None
+    if device is None or device.type not in ("cpu", "cuda"):
+        raise MissionError("[ata_hrl]", "device", f"'{name}' is not a device: use 'cpu' or "
+                           "'cuda' (or 'cuda:N')", file=source)
+    if device.type == "cuda":
+        if not torch.cuda.is_available():
+            raise MissionError("[ata_hrl]", "device", f"'{name}': this torch sees no CUDA "
+                               "device (a CPU build, or no GPU); use 'cpu'", file=source)
+        if device.index is not None and device.index >= torch.cuda.device_count():
+            raise MissionError("[ata_hrl]", "device", f"'{name}': this machine has "
+                               f"{torch.cuda.device_count()} CUDA device(s)", file=source)
+        os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
+        torch.use_deterministic_algorithms(True, warn_only=True)
+    return device
 
 
 def _is(factory: Any, cls: type | tuple[type, ...]) -> bool:

@@ -64,40 +64,40 @@ class CtrPhase(PolicyPhase):
             tr_from_ita(self.tr.net)
 
     def loss(self, rec: Recorder, R: dict[str, np.ndarray]) -> torch.Tensor:
-        tr, K = self.tr, self.tr.s.samples
+        tr, K, dev = self.tr, self.tr.s.samples, self.tr.device
         net = tr.net
-        loss = torch.zeros(())
-        emb_i = net.tr.encoder(to_tensors(rec.inherent))
+        loss = torch.zeros((), device=dev)
+        emb_i = net.tr.encoder(to_tensors(rec.inherent, dev))
         if tr.trains_cond and rec.cond_choice:
             # pi_C decides at epochs 1 .. T-1: each decision against R_C from its epoch on
             logp = condition_log_prob(net, rec, emb_i)                   # (E, T-1)
             adv = per_epoch_advantage(R["R_C_to_go"][:, 1:], K)
-            loss = loss + -(scaled(adv) * logp).sum() / adv.shape[0]
+            loss = loss + -(scaled(adv, dev) * logp).sum() / adv.shape[0]
         if tr.trains_tr and rec.tr:
             adv_all = per_epoch_advantage(R["R_TR_to_go"], K)
             terms, advs = [], []
             for item in rec.tr:
-                rows = torch.as_tensor(item["rows"])
+                rows = torch.as_tensor(item["rows"], device=dev)
                 emb = net.tr.embed({g: v[rows] for g, v in emb_i.items()},
-                                   to_tensors(item["raw"]), to_tensors(item["seen"]))
+                                   to_tensors(item["raw"], dev), to_tensors(item["seen"], dev))
                 terms.append(D.trace_log_prob(net.tr, emb, item["trace"])[0])
                 advs.append(adv_all[item["rows"], item["epoch"]])
-            loss = loss - (scaled(np.concatenate(advs)) * torch.cat(terms)).sum() \
+            loss = loss - (scaled(np.concatenate(advs), dev) * torch.cat(terms)).sum() \
                 / R["total"].size
         return loss
 
 
 def condition_log_prob(net, rec: Recorder, emb_i: dict[str, torch.Tensor]) -> torch.Tensor:
     """pi_C's log-probabilities of its recorded decisions, (E, epochs decided)."""
-    E = rec.cond_feats[0].shape[0]
-    hidden = torch.zeros(E, net.cfg.d_model)
+    E, dev = rec.cond_feats[0].shape[0], emb_i["tasks"].device
+    hidden = torch.zeros(E, net.cfg.d_model, device=dev)
     logps = []
     for k, (raw, seen) in enumerate(rec.cond_state):
-        emb = net.tr.embed(emb_i, to_tensors(raw), to_tensors(seen))
+        emb = net.tr.embed(emb_i, to_tensors(raw, dev), to_tensors(seen, dev))
         pooled = torch.cat([emb[g] for g in GROUPS], 1).mean(1)
-        logit, hidden = net.cond(pooled, torch.as_tensor(rec.cond_feats[k]),
-                                 torch.as_tensor(rec.cond_prior[k]), hidden)
+        logit, hidden = net.cond(pooled, torch.as_tensor(rec.cond_feats[k], device=dev),
+                                 torch.as_tensor(rec.cond_prior[k], device=dev), hidden)
         two = torch.log_softmax(torch.stack([torch.zeros_like(logit), logit], -1), -1)
-        choice = torch.as_tensor(rec.cond_choice[k]).long()
+        choice = torch.as_tensor(rec.cond_choice[k], device=dev).long()
         logps.append(two.gather(-1, choice[:, None])[:, 0])
     return torch.stack(logps, 1)

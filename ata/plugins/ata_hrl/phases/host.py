@@ -22,6 +22,7 @@ class Host(Protocol):
     aux_opt: torch.optim.Optimizer
     status_opt: torch.optim.Optimizer | None
     policy_params: list[torch.nn.Parameter]
+    device: torch.device                      # where the ITA and CTR phases update
     gen: torch.Generator                      # the policies' sampling
     status_gen: torch.Generator
     loop: PhaseLoop

@@ -41,6 +41,7 @@ class ItaPhase(PolicyPhase):
     def loss(self, rec: Recorder, R: dict[str, np.ndarray]) -> torch.Tensor:
         """-(advantage * log-probability of the sample's decisions), averaged over decisions."""
         net = self.tr.net
-        emb = net.ita.encoder(to_tensors(rec.inherent))
+        emb = net.ita.encoder(to_tensors(rec.inherent, self.tr.device))
         logp, _ = D.trace_log_prob(net.ita, emb, rec.ita)
-        return -(scaled(shared_baseline_advantage(R["R_ITA"], self.tr.s.samples)) * logp).mean()
+        adv = scaled(shared_baseline_advantage(R["R_ITA"], self.tr.s.samples), logp.device)
+        return -(adv * logp).mean()

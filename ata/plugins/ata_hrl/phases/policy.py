@@ -10,18 +10,19 @@ scenario's samples; one Adam step follows, the policies' gradients clipped to ``
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 import torch
+from torch.nn.attention import SDPBackend, sdpa_kernel
 
 from ata.core.settings import param
 from ata.plugins.ata_hrl.components import Recorder
 from ata.plugins.ata_hrl.rewards import hierarchical_rewards, rewards_to_go
-from ata.training import Phase
 from ata.plugins.ata_hrl.phases.host import Host
-
+from ata.training import Phase
 
 
 @dataclass
@@ -56,10 +57,42 @@ def rewards(record) -> dict[str, np.ndarray]:
     return R
 
 
-def scaled(advantage: np.ndarray) -> torch.Tensor:
+def scaled(advantage: np.ndarray, device: torch.device | None = None) -> torch.Tensor:
     """The advantages over their standard deviation (the step's size does not follow the
     rewards' scale)."""
-    return torch.as_tensor(advantage / (advantage.std() + 1e-6), dtype=torch.float32)
+    return torch.as_tensor(advantage / (advantage.std() + 1e-6), dtype=torch.float32,
+                           device=device)
+
+
+def move(net: torch.nn.Module, optimizers: list[torch.optim.Optimizer],
+         device: torch.device) -> None:
+    """`net`'s parameters (the same objects, so the optimisers still hold them) and the
+    optimisers' moment estimates onto `device` (each step count stays on the CPU, where Adam
+    keeps it)."""
+    net.to(device)
+    for opt in optimizers:
+        for state in opt.state.values():
+            for key, value in state.items():
+                if torch.is_tensor(value) and key != "step":
+                    state[key] = value.to(device)
+
+
+@contextmanager
+def on_device(net: torch.nn.Module, optimizers: list[torch.optim.Optimizer],
+              device: torch.device) -> Iterator[None]:
+    """The networks and their optimisers on `device` for an update, then back on the CPU,
+    where the rollouts decode and the checkpoints are written from."""
+    if device.type == "cpu":
+        yield
+        return
+    move(net, optimizers, device)
+    try:
+        # attention by its plain formula: the fused kernels' backward passes are not
+        # deterministic, and a seed should give the same run
+        with sdpa_kernel(SDPBackend.MATH):
+            yield
+    finally:
+        move(net, optimizers, torch.device("cpu"))
 
 
 class PolicyPhase:
@@ -99,12 +132,20 @@ class PolicyPhase:
         ids = np.repeat(tr.ids(self.name, k), s.samples)
         record, rec = tr.rollout(mission, ids, self.name, train=True)
         R = rewards(record)
-        loss = self.loss(rec, R)
-        self.update(loss)
-        return {"setting": setting, "loss": f"{loss.item():.4f}",
+        loss = self.learn(rec, R)
+        return {"setting": setting, "loss": f"{loss:.4f}",
                 "mean_score": f"{R['total'].mean():.2f}", "R_ITA": f"{R['R_ITA'].mean():.2f}",
                 "R_C": f"{R['R_C'].mean():.2f}", "R_TR": f"{R['R_TR'].mean():.2f}",
                 "reallocations": f"{record.reallocated[:, 1:].sum(1).mean():.2f}"}, ids.size
+
+    def learn(self, rec: Recorder, R: dict[str, np.ndarray]) -> float:
+        """The loss of a rollout and one update on it, on the trainer's update device;
+        returns the loss."""
+        tr = self.tr
+        with on_device(tr.net, [tr.opt], tr.device):
+            loss = self.loss(rec, R)
+            self.update(loss)
+            return loss.item()
 
     def update(self, loss: torch.Tensor) -> None:
         """One Adam step of the policies on `loss`, their gradients clipped (not the
