@@ -1,6 +1,6 @@
 """The six figures of the "Fast" goals (docs/benchmarks.md), each measured in one run, beside its goal.
 
-Usage: python benchmarks/bench_fast.py [--quick] [--only 1,2,...]
+Usage: python benchmarks/bench_fast.py [--quick] [--only 1,2,...] [--train-set TABLE.KEY=VALUE]
 
 1. the paper's suite (`ata eval examples/paper_suite.toml -w 2`) with an empty ITA-MILP cache,
    wall time (--quick: 50 scenarios per cell, one `ata eval` unit each as in the full suite,
@@ -136,11 +136,12 @@ def figure_batch_and_memory(cfg: dict, do_batch: bool, do_memory: bool) -> None:
 
 def figure_recipe(cfg: dict) -> None:
     aux, ita, ctr = cfg["recipe"]
-    rows = bench_training.recipe_estimate(aux, ita, ctr)
+    rows = bench_training.recipe_estimate(aux, ita, ctr, cfg.get("train_set", []))
     for part, sec, n, m, est in rows:
         say(f"[4] {part}: {sec:.1f} s for {n} measured -> {est:.0f} s for the recipe's {m}")
     total = sum(r[4] for r in rows)
-    say(f"(4) ATA-HRL (a) training recipe: {total / 60:.1f} min (extrapolated from "
+    changed = f", with {' '.join(cfg['train_set'])}" if cfg.get("train_set") else ""
+    say(f"(4) ATA-HRL (a) training recipe{changed}: {total / 60:.1f} min (extrapolated from "
         f"{aux} aux, {ita} ITA, {ctr} CTR steps and their validations) (goal < 15 min)",
         summary=True)
 
@@ -161,8 +162,11 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true",
                         help="the short version (a few minutes; the suite extrapolated)")
     parser.add_argument("--only", default="1,2,3,4,5,6", help="figures to measure")
+    parser.add_argument("--train-set", action="append", default=[], metavar="TABLE.KEY=VALUE",
+                        help="figure 4: change a setting of the recipe, as ata train's --set "
+                        "(ata_hrl.device=cuda: the updates on a GPU)")
     args = parser.parse_args()
-    cfg = QUICK if args.quick else FULL
+    cfg = {**(QUICK if args.quick else FULL), "train_set": args.train_set}
     only = {int(x) for x in args.only.split(",")}
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
                             text=True, cwd=HERE).stdout.strip()

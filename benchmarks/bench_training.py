@@ -1,11 +1,13 @@
 """Training throughput of ATA-HRL: episodes per second with and without the networks, in one run.
 
 Usage: python benchmarks/bench_training.py [--setting a] [--scenarios 16] [--samples 8]
-                                           [--repeats 3]
+                                           [--repeats 3] [--threads 1] [--device cpu]
 
 Setting (a), medium uncertainty, one torch thread, an untrained network of the shipped
 architecture; each row is the median of ``repeats`` timings of ``scenarios x samples`` episodes
-(one training step's worth):
+(one training step's worth). ``--device cuda`` runs the training steps' updates on a GPU
+(``[ata_hrl] device``; the rollouts decode on the CPU) and adds the network's forward pass at
+a decoding step's size on each device. The rows:
 
 - the simulator with greedy (initial allocation and event-triggered reallocation): no network;
 - the ITA decoder on greedy's prior alone (``learned = false``), no reallocation: the decoder's
@@ -52,16 +54,17 @@ def validations(steps: int, eval_every: int) -> int:
         if steps else 0
 
 
-def recipe_estimate(aux_steps: int = 20, ita_steps: int = 2, ctr_steps: int = 1
-                    ) -> list[tuple[str, float, int, int, float]]:
+def recipe_estimate(aux_steps: int = 20, ita_steps: int = 2, ctr_steps: int = 1,
+                    overrides: list[str] = ()) -> list[tuple[str, float, int, int, float]]:
     """The built-in (a) recipe's wall time by part, extrapolated from a few calls of each part.
 
     The trainer of ata/missions/train_ata_hrl.toml is built as `ata train --plugins ctr,aux`
     builds it; its phases' own calls are timed: one teacher batch of reconstruction data
     (``aux.rows``), `aux_steps` aux steps, `ita_steps` ITA and `ctr_steps` CTR steps, one
-    validation of each policy phase and one checkpoint write. Returns (part, measured seconds,
-    calls measured, calls in the recipe, extrapolated seconds) rows: linear in the calls."""
-    session = load_session(str(training_mission_for(["ctr", "aux"])))
+    validation of each policy phase and one checkpoint write; `overrides` (``TABLE.KEY=VALUE``,
+    as ``--set``) change the recipe's settings. Returns (part, measured seconds, calls measured,
+    calls in the recipe, extrapolated seconds) rows: linear in the calls."""
+    session = load_session(str(training_mission_for(["ctr", "aux"])), list(overrides))
     trainer = build_trainer(session)
     s, phases = trainer.s, trainer.phases()
     assert phases["status"] == 0 and phases["cond"] == 0, \
@@ -97,18 +100,49 @@ def recipe_estimate(aux_steps: int = 20, ita_steps: int = 2, ctr_steps: int = 1
     return [(part, sec, n, m, sec / max(n, 1) * m) for part, sec, n, m in rows]
 
 
+def decode_step_forward(device: str, episodes: int = 128, pois: int = 60,
+                        repeats: int = 200) -> float:
+    """Milliseconds of one POI-step scoring at a decoding step's size, as the decoder makes it:
+    the step's numpy inputs to `device`, the scorer's forward pass without gradient (hidden
+    layers for the legal POIs, half of them here), the logits back to the CPU for the choice
+    (median of `repeats`)."""
+    from ata.plugins.ata_hrl.network import FEATURES, ATAHRLNet, NetConfig
+    net = ATAHRLNet(NetConfig()).to(device)
+    scorer, d = net.ita.scorers["poi"], net.cfg.d_model
+    gen = np.random.default_rng(0)
+    feats = gen.random((episodes, pois, FEATURES["poi"]), dtype=np.float32)
+    prior = gen.random((episodes, pois), dtype=np.float32)
+    mask = gen.random((episodes, pois)) < 0.5
+    legal = np.flatnonzero(mask)                  # the decoder scores the legal POIs alone
+    cand = torch.zeros(episodes, pois, d, device=device)
+    ctx = torch.zeros(episodes, d, device=device)
+    times = []
+    with torch.inference_mode():
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            logits = scorer(torch.from_numpy(feats).to(device), cand, ctx,
+                            torch.from_numpy(prior).to(device), torch.from_numpy(mask).to(device),
+                            legal=torch.from_numpy(legal).to(device))
+            logits.cpu()
+            times.append(time.perf_counter() - t0)
+    return 1000 * statistics.median(times)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--setting", default="a")
     parser.add_argument("--scenarios", type=int, default=16)
     parser.add_argument("--samples", type=int, default=8)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--threads", type=int, default=1, help="torch CPU threads")
+    parser.add_argument("--device", default="cpu", help="device of the training steps' "
+                        "updates ([ata_hrl] device): cpu or cuda")
     args = parser.parse_args()
-    torch.set_num_threads(1)
+    torch.set_num_threads(args.threads)
     B, K = args.scenarios, args.samples
     n = B * K
     common = [f"mission.setting='{args.setting}'", f"ata_hrl.batch_size={B}",
-              f"ata_hrl.samples={K}"]
+              f"ata_hrl.samples={K}", f"ata_hrl.device='{args.device}'"]
     session = load_session(str(training_mission_for(["ctr", "aux"])), common)
     trainer = build_trainer(session)
     mission = trainer.mission_of(args.setting, 777)
@@ -136,7 +170,7 @@ def main() -> None:
             t0 = time.perf_counter()
             record, rec = trainer.rollout(mission, ids(i), part.name, train=True)
             t1 = time.perf_counter()
-            part.update(part.loss(rec, rewards(record)))
+            part.learn(rec, rewards(record))
             return {"rollout": t1 - t0, "update": time.perf_counter() - t1}
         return run
 
@@ -146,7 +180,8 @@ def main() -> None:
             ("ITA training step (rollout + update)", step(trainer.ita)),
             ("pi_C / pi_TR training step (rollout + update)", step(trainer.ctr))]
     table = Table(title=f"ATA-HRL training throughput, setting ({args.setting}), {B} scenarios x "
-                        f"{K} samples = {n} episodes, 1 torch thread")
+                        f"{K} samples = {n} episodes, {args.threads} torch thread(s), updates "
+                        f"on {args.device}")
     for col in ("what", "seconds", "episodes/s", "x simulator", "rollout s", "update s"):
         table.add_column(col, justify="left" if col == "what" else "right")
     base = None
@@ -158,6 +193,10 @@ def main() -> None:
                       f"{info['rollout']:.2f}" if "rollout" in info else "-",
                       f"{info['update']:.2f}" if "update" in info else "-")
     Console(width=160).print(table)
+    if args.device != "cpu":
+        for device in ("cpu", args.device):
+            print(f"POI scorer at a decoding step's size ({n} episodes x 60 POIs, inputs in "
+                  f"and logits out) on {device}: {decode_step_forward(device):.3f} ms")
 
 
 if __name__ == "__main__":
