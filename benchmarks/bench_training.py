@@ -3,7 +3,7 @@
 Usage: python benchmarks/bench_training.py [--setting a] [--scenarios 16] [--samples 8]
                                            [--repeats 3] [--threads 1] [--device cpu]
 
-Setting (a), medium uncertainty, one torch thread, an untrained network of the shipped
+Setting (a), medium uncertainty, one torch thread (`--threads`), an untrained network of the shipped
 architecture; each row is the median of ``repeats`` timings of ``scenarios x samples`` episodes
 (one training step's worth). ``--device cuda`` runs the training steps' updates on a GPU
 (``[ata_hrl] device``; the rollouts decode on the CPU) and adds the network's forward pass at

@@ -223,23 +223,3 @@ def trace_log_prob(net: AllocationNet, emb: dict[str, torch.Tensor], trace: Deco
         p = lsm.exp()
         ent = ent + torch.where(free, -(p * lsm.clamp(min=-30)).sum(-1), 0.0).sum(0)
     return logp, ent
-    for kind in KINDS:
-        st = trace.stacked(kind)
-        feats = torch.from_numpy(st["features"])                 # (S, E, N, F)
-        mask = torch.from_numpy(st["mask"])
-        prior = torch.from_numpy(st["prior"])
-        n = mask.shape[-1]
-        cand = net.candidates(kind, emb)[:, :n]                  # (E, N, d)
-        idx = {"robot": torch.from_numpy(st["robot"]), "task": torch.from_numpy(st["task"])}
-        ctx = step_context(kind, emb, idx)                      # (S, E, d)
-        logits = net.scorers[kind](feats, cand, ctx, prior, mask, residual)
-        lsm = torch.log_softmax(logits, -1)
-        choice = torch.from_numpy(st["choice"]).long()
-        chosen = lsm.gather(-1, choice[..., None])[..., 0]
-        active = torch.from_numpy(st["active"])
-        # a sub-decision with one legal choice carries no probability mass
-        free = (mask.sum(-1) > 1) & active
-        logp = logp + torch.where(free, chosen, 0.0).sum(0)
-        p = lsm.exp()
-        ent = ent + torch.where(free, -(p * lsm.clamp(min=-30)).sum(-1), 0.0).sum(0)
-    return logp, ent

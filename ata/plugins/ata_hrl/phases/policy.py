@@ -16,7 +16,6 @@ from typing import Any, Iterator
 
 import numpy as np
 import torch
-from torch.nn.attention import SDPBackend, sdpa_kernel
 
 from ata.core.settings import param
 from ata.plugins.ata_hrl.components import Recorder
@@ -85,6 +84,7 @@ def on_device(net: torch.nn.Module, optimizers: list[torch.optim.Optimizer],
     if device.type == "cpu":
         yield
         return
+    from torch.nn.attention import SDPBackend, sdpa_kernel
     move(net, optimizers, device)
     try:
         # attention by its plain formula: the fused kernels' backward passes are not
