@@ -8,7 +8,9 @@ time estimate per POI), so the MILP chooses types and a per-robot count cap boun
 our own code then gives each POI a robot of its type, in sweeps around the base so that routes
 stay compact, respecting every robot's count. Options that fail the capability redundancy
 requirement are left out of the model; so are dominated navigators (a low or medium skill human
-navigates no faster and images no better than the robot alone).
+navigates no faster and images no better than the robot alone). The model itself is
+`milp_model`; this module solves it (`solve_scenario`), keeps solutions in the cache and is the
+policy.
 """
 
 from __future__ import annotations
@@ -19,236 +21,24 @@ import json
 import os
 import time
 import warnings
-from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
-from scipy import sparse
-from scipy.optimize import LinearConstraint, milp
+from scipy.optimize import Bounds, LinearConstraint, milp
 
 from ata import hookimpl
-from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext, SimState
 from ata.runtime.cache import cache_dir
 from ata.runtime.executors import ProcessExecutor
 from ata.model import tables
 from ata.model.greedy_planner import GreedySettings, plan
 from ata.model.plan import believed, fatigue_belief, seen
-from ata.model.team import CAPTURE_S, FATIGUE_FLOOR, HumanConstants, RobotConstants
-
-STATUS_TEXT = {0: "optimal", 1: "limit reached", 2: "infeasible", 3: "unbounded", 4: "error",
-               -1: "not solved"}
-
-
-@dataclass
-class MilpSettings:
-    """The ``[milp]`` table."""
-
-    time_limit_s: float = param(20.0, min=0.01, help="solver time limit per scenario, s")
-    node_limit: int = param(20000, min=1, help="branch-and-bound node limit per scenario "
-                            "(deterministic, unlike the time limit)")
-    mip_rel_gap: float = param(0.01, min=0.0, max=1.0, help="relative optimality gap to stop at")
-    redundancy_margin: list[float] = param([0.1, 0.05, 0.0], min=0.0, max=0.5,
-                                           help="per difficulty (low, medium, high): the "
-                                                "pessimistic success probability must reach "
-                                                "0.5 + this")
-    fatigue_sigmas: float = param(1.0, min=0.0, help="fatigue noise std devs taken off F_f in "
-                                  "the pessimistic case")
-    pessimistic_utilisation: float = param(0.85, min=0.0, max=1.0,
-                                           help="utilisation at which F_w is taken in the "
-                                                "pessimistic case")
-    human_utilisation_cap: float = param(0.65, min=0.01, max=1.0,
-                                         help="share of the horizon a human may be booked")
-    robot_utilisation_cap: float = param(0.9, min=0.01, max=1.0,
-                                         help="share of the horizon a robot's route may take")
-    tour_constant: float = param(0.7124, min=0.0, help="route length per POI is this times "
-                                 "sqrt(area / POIs per robot) (Beardwood-Halton-Hammersley)")
-    workers: int = param(1, min=1, max=256, help="worker processes solving scenarios")
-    chunk_size: int = param(16, min=1, help="scenarios per worker task")
-
-
-@dataclass
-class ScenarioData:
-    """What the MILP of one scenario is built from: I, the working hours in S at t = 0 and the
-    F_f the plan's belief gives then and after a shift at the utilisation cap, the mission's
-    horizon and uncertainty level, and the constants the team models publish. Plain arrays, so
-    it travels to worker processes. ``fatigue_noisy``: no reconstructor gave a belief, so it is
-    the noisy fatigue of S moved along the population line, and the pessimistic case takes the
-    noise off too (a reconstructor's belief has the noise in it already: not twice)."""
-
-    kind: np.ndarray          # (P,) estimated kind
-    diff: np.ndarray          # (P,) estimated difficulty
-    xy: np.ndarray            # (P, 2) metres
-    eta: np.ndarray           # (H,)
-    lam: np.ndarray           # (H,)
-    skill: np.ndarray         # (H,)
-    hours: np.ndarray         # (H,) working hours at t = 0
-    fatigue_now: np.ndarray   # (H,) F_f now, by the belief
-    fatigue_worn: np.ndarray  # (H,) F_f after a shift at the utilisation cap, by the belief
-    rtype: np.ndarray         # (R,)
-    speed: np.ndarray         # (R,) m/s
-    area_m: float
-    horizon_s: float
-    event_p: float
-    fatigue_sigma: float
-    fatigue_floor: float = FATIGUE_FLOOR
-    capture_s: float = CAPTURE_S
-    fatigue_noisy: bool = True
-
-
-@dataclass
-class Model:
-    """The MILP of one scenario: options, objective, constraints (maximise values @ x)."""
-
-    task: np.ndarray          # (n,) POI of each option
-    rtype: np.ndarray         # (n,) robot type
-    nav: np.ndarray           # (n,) -1 auto, else human
-    cls: np.ndarray           # (n,) -1 onboard, else human
-    value: np.ndarray         # (n,) nominal expected points
-    p_pess: np.ndarray        # (n,) pessimistic success probability
-    required: np.ndarray      # (P,) the probability each POI's option must reach
-    human_time: np.ndarray    # (H, n) seconds of human h the option books
-    type_slots: np.ndarray    # (2,) POIs each robot type can take in all
-    robot_slots: np.ndarray   # (R,) POIs each robot can take
-    human_budget: float       # seconds each human may be booked
-    A: sparse.csr_matrix = field(repr=False, default=None)
-    lb: np.ndarray = field(repr=False, default=None)
-    ub: np.ndarray = field(repr=False, default=None)
-
-
-@dataclass
-class Solution:
-    triples: np.ndarray | None   # (P, 3) robot, navigator, classifier; None when it failed
-    status: int
-    objective: float
-    bound: float
-    gap: float
-    seconds: float
-    message: str
-    problems: list[str] = field(default_factory=list)
-    margin_scale: float = 1.0    # the redundancy margins' scale the model needed
-
-
-def build_model(d: ScenarioData, s: MilpSettings, margin_scale: float = 1.0) -> Model:
-    """Enumerate the options, apply the redundancy requirement (its margins scaled by
-    `margin_scale`), and assemble the constraints."""
-    P, H, R = d.kind.size, d.eta.size, d.rtype.size
-    present = np.array([np.any(d.rtype == t) for t in (tables.UAV, tables.UGV)])
-    type_speed = np.array([d.speed[d.rtype == t].mean() if present[t] else 1.0 for t in (0, 1)])
-    nav_opts = np.concatenate([[-1], np.nonzero(d.skill == 2)[0]])          # auto, high skill
-    cls_opts = np.arange(-1, H)
-    p_, t_, k_, c_ = np.meshgrid(np.arange(P), np.nonzero(present)[0], nav_opts, cls_opts,
-                                 indexing="ij")
-    p_, t_, k_, c_ = (a.ravel() for a in (p_, t_, k_, c_))
-    nav_class = np.where(k_ < 0, 1, 2)
-    kind, diff = d.kind[p_], d.diff[p_]
-    q = tables.QUALITY[t_, kind, nav_class]
-    hard = np.minimum(diff + 1, 2)
-    q_flip = tables.QUALITY[t_, 1 - kind, nav_class]
-    human = c_ >= 0
-    ch = np.maximum(c_, 0)
-
-    def success(quality, difficulty, f_f, f_w):
-        on = tables.P_RC[quality, difficulty]
-        hum = 0.5 + d.eta[ch] * f_f * f_w * d.lam[ch] * tables.F_D[quality, difficulty]
-        return np.where(human, hum, on)
-
-    f_f_nom = d.fatigue_now[ch]
-    value = tables.expected_points(tables.POINTS[diff], success(q, diff, f_f_nom, 1.0))
-    # pessimistic: fatigue after a shift at the utilisation cap, less the noise the level makes
-    # plausible (where the belief is the noisy observation's); a busy workload; and, with the
-    # level's probability, a harder POI of either kind
-    noise = s.fatigue_sigmas * d.fatigue_sigma if d.fatigue_noisy else 0.0
-    f_f_pess = np.maximum(0.0, d.fatigue_worn - noise)[ch]
-    f_w_pess = float(tables.workload(s.pessimistic_utilisation))
-    p_same = success(q, diff, f_f_pess, f_w_pess)
-    p_changed = np.minimum(success(q, hard, f_f_pess, f_w_pess),
-                           success(q_flip, hard, f_f_pess, f_w_pess))
-    p_pess = (1.0 - d.event_p) * p_same + d.event_p * p_changed
-
-    # redundancy: keep the options whose pessimistic success reaches the requirement; a POI
-    # that no option can reach keeps its most robust options (best effort, documented)
-    required = 0.5 + np.asarray(s.redundancy_margin, dtype=float)[d.diff] * margin_scale
-    best = np.full(P, -np.inf)
-    np.maximum.at(best, p_, p_pess)
-    required = np.minimum(required, best)
-    keep = p_pess >= required[p_] - 1e-12
-    p_, t_, k_, c_, value, p_pess, q, diff = (a[keep] for a in (p_, t_, k_, c_, value, p_pess,
-                                                                 q, diff))
-    n = p_.size
-
-    leg_m = s.tour_constant * np.sqrt(d.area_m ** 2 * R / max(P, 1))
-    per_poi_s = leg_m / type_speed + d.capture_s                        # (2,) robot seconds
-    robot_slots = np.floor(s.robot_utilisation_cap * d.horizon_s / per_poi_s[d.rtype]).astype(int)
-    type_slots = np.array([robot_slots[d.rtype == t].sum() for t in (0, 1)])
-    nav_s = leg_m / (type_speed[t_] * tables.SKILL_SPEED[2]) + d.capture_s
-    cls_s = tables.T_BAR[q, diff]
-    human_time = np.zeros((H, n))
-    cols = np.arange(n)
-    human_time[k_[k_ >= 0], cols[k_ >= 0]] += nav_s[k_ >= 0]
-    human_time[c_[c_ >= 0], cols[c_ >= 0]] += cls_s[c_ >= 0]
-    human_budget = s.human_utilisation_cap * d.horizon_s
-
-    # rows: one option per POI (P), POIs per robot type (2), seconds per human (H)
-    assign = sparse.csr_matrix((np.ones(n), (p_, cols)), shape=(P, n))
-    per_type = sparse.csr_matrix((np.ones(n), (t_, cols)), shape=(2, n))
-    A = sparse.vstack([assign, per_type, sparse.csr_matrix(human_time)]).tocsr()
-    lb = np.concatenate([np.ones(P), np.zeros(2), np.zeros(H)])
-    ub = np.concatenate([np.ones(P), type_slots.astype(float), np.full(H, human_budget)])
-    return Model(task=p_, rtype=t_, nav=k_, cls=c_, value=value, p_pess=p_pess,
-                 required=required, human_time=human_time, type_slots=type_slots,
-                 robot_slots=robot_slots, human_budget=human_budget, A=A, lb=lb, ub=ub)
-
-
-def check_choice(model: Model, chosen: np.ndarray, robot: np.ndarray, d: ScenarioData) -> list[str]:
-    """Our own check of a solution: one option per POI, redundancy, capacities. [] when fine."""
-    problems = []
-    P = model.required.size
-    counts = np.bincount(model.task[chosen], minlength=P)
-    if chosen.size != P or (counts != 1).any():
-        problems.append("not exactly one option per POI")
-        return problems
-    order = np.argsort(model.task[chosen])
-    chosen = chosen[order]
-    if (model.p_pess[chosen] < model.required - 1e-9).any():
-        problems.append("a POI's option misses the redundancy requirement")
-    used = model.human_time[:, chosen].sum(axis=1)
-    if (used > model.human_budget * (1 + 1e-9) + 1e-6).any():
-        problems.append(f"a human is booked {used.max():.0f} s > {model.human_budget:.0f} s")
-    per_robot = np.bincount(robot, minlength=d.rtype.size)
-    if (per_robot > model.robot_slots).any():
-        problems.append("a robot has more POIs than its route time allows")
-    if (d.rtype[robot] != model.rtype[chosen]).any():
-        problems.append("a POI's robot is not of the chosen type")
-    return problems
-
-
-def assign_robots(d: ScenarioData, types: np.ndarray, slots: np.ndarray) -> np.ndarray:
-    """Give each POI a robot of its chosen type: POIs sorted by angle around the base, cut into
-    consecutive runs in proportion to each robot's slots, so every robot covers a sector."""
-    robot = np.full(types.size, -1, dtype=np.int64)
-    base = np.full(2, d.area_m / 2.0)
-    angle = np.arctan2(d.xy[:, 1] - base[1], d.xy[:, 0] - base[0])
-    for t in (tables.UAV, tables.UGV):
-        pois = np.nonzero(types == t)[0]
-        robots = np.nonzero(d.rtype == t)[0]
-        if pois.size == 0:
-            continue
-        pois = pois[np.argsort(angle[pois], kind="stable")]
-        # an even share for each robot, never above its slots
-        share = np.full(robots.size, pois.size // robots.size)
-        share[: pois.size - share.sum()] += 1
-        share = np.minimum(share, slots[robots])
-        missing = pois.size - share.sum()
-        for i in range(robots.size):           # hand what is left to robots with room
-            extra = min(missing, slots[robots[i]] - share[i])
-            share[i] += extra
-            missing -= extra
-        if missing > 0:                         # cannot happen when the type's row held
-            share[-1] += missing
-        robot[pois] = np.repeat(robots, share)
-    return robot
-
+from ata.model.team import HumanConstants, RobotConstants
+from ata.plugins.policies import milp_model
+from ata.plugins.policies.milp_model import (  # noqa: F401  (the model's names, here too)
+    STATUS_TEXT, MilpSettings, Model, ScenarioData, Solution, assign_robots, build_model,
+    check_choice)
 
 def solve_scenario(d: ScenarioData, s: MilpSettings) -> Solution:
     """Build, solve and check one scenario's MILP. When the redundancy requirement makes the
@@ -268,31 +58,83 @@ RELAX_STEPS = (1.0, 0.5, 0.0)
 """Scales of the redundancy margins tried in turn when the model is infeasible."""
 
 
+RESTRICTED_GAP = 1e-3
+"""The relative gap the restricted MILP of `_solve_model`'s second solve stops at."""
+
+
+class _Result(NamedTuple):
+    x: np.ndarray | None
+    status: int
+    objective: float
+    bound: float
+    gap: float
+    message: str
+
+
+def _solve_model(model: Model, s: MilpSettings, t0: float) -> _Result:
+    """Solve the MILP to the relative gap `s.mip_rel_gap` with HiGHS, in up to three solves:
+
+    1. its LP relaxation, whose optimum bounds the MILP's optimum. In an optimal basic solution
+       every POI but a few (no more than the capacity rows) takes one option whole;
+    2. the MILP restricted to the POIs the LP leaves fractional, every other POI keeping its
+       LP option, solved to `RESTRICTED_GAP`: a solution of the whole MILP. When its objective
+       is within `s.mip_rel_gap` of the LP bound, that bound proves the gap, and it is the
+       answer;
+    3. otherwise, or when the first two found nothing, the whole MILP by branch and bound.
+    """
+    n = model.value.size
+    rows = [LinearConstraint(model.A, model.lb, model.ub)]
+
+    def left() -> float:
+        return max(s.time_limit_s - (time.perf_counter() - t0), 0.01)
+
+    lp = milp(-model.value, integrality=np.zeros(n), bounds=(0, 1), constraints=rows,
+              options={"time_limit": left(), "presolve": True})
+    if lp.status == 2:           # no fractional solution, so no integral one either
+        return _Result(None, 2, np.nan, np.nan, np.nan, lp.message)
+    if lp.status == 0:
+        whole = lp.x > 1 - 1e-9
+        decided = np.zeros(model.required.size, bool)
+        decided[model.task[whole]] = True
+        keep = Bounds(whole.astype(float), np.where(decided[model.task] & ~whole, 0.0, 1.0))
+        sub = milp(-model.value, integrality=np.ones(n), bounds=keep, constraints=rows,
+                   options={"time_limit": left(), "node_limit": s.node_limit,
+                            "mip_rel_gap": RESTRICTED_GAP, "presolve": True})
+        if sub.x is not None:
+            x = np.round(sub.x)
+            value, bound = float(model.value @ x), float(-lp.fun)
+            gap = max(bound - value, 0.0) / max(abs(value), 1e-9)
+            if gap <= s.mip_rel_gap:
+                return _Result(x, 0, value, bound, gap, "optimal within the gap of the LP "
+                               "relaxation's bound (the restricted MILP's solution)")
+    res = milp(-model.value, integrality=np.ones(n), bounds=(0, 1), constraints=rows,
+               options={"time_limit": left(), "node_limit": s.node_limit,
+                        "mip_rel_gap": s.mip_rel_gap, "presolve": True})
+    bound = -res.mip_dual_bound if res.mip_dual_bound is not None else np.nan
+    gap = res.mip_gap if res.mip_gap is not None else np.nan
+    objective = float(-res.fun) if res.x is not None else np.nan
+    return _Result(res.x, res.status, objective, float(bound), float(gap), res.message)
+
+
 def _solve_once(d: ScenarioData, s: MilpSettings, scale: float, t0: float) -> Solution:
     model = build_model(d, s, scale)
-    n = model.value.size
-    remaining = max(s.time_limit_s - (time.perf_counter() - t0), 0.01)
     try:
-        res = milp(-model.value, integrality=np.ones(n), bounds=(0, 1),
-                   constraints=[LinearConstraint(model.A, model.lb, model.ub)],
-                   options={"time_limit": remaining, "node_limit": s.node_limit,
-                            "mip_rel_gap": s.mip_rel_gap, "presolve": True})
+        res = _solve_model(model, s, t0)
     except Exception as exc:   # a solver crash takes the documented fallback
         return Solution(None, 4, np.nan, np.nan, np.nan, time.perf_counter() - t0, str(exc))
     seconds = time.perf_counter() - t0
-    bound = -res.mip_dual_bound if res.mip_dual_bound is not None else np.nan
-    gap = res.mip_gap if res.mip_gap is not None else np.nan
     if res.x is None:
-        return Solution(None, res.status, np.nan, bound, gap, seconds, res.message)
+        return Solution(None, res.status, np.nan, res.bound, res.gap, seconds, res.message)
     chosen = np.nonzero(res.x > 0.5)[0]
     chosen = chosen[np.argsort(model.task[chosen])]
     robot = assign_robots(d, model.rtype[chosen], model.robot_slots) if chosen.size == \
         d.kind.size else np.zeros(0, dtype=np.int64)
     problems = check_choice(model, chosen, robot, d)
     if problems:
-        return Solution(None, res.status, -res.fun, bound, gap, seconds, res.message, problems)
+        return Solution(None, res.status, res.objective, res.bound, res.gap, seconds,
+                        res.message, problems)
     triples = np.stack([robot, model.nav[chosen], model.cls[chosen]], axis=1)
-    return Solution(triples, res.status, float(-res.fun), float(bound), float(gap), seconds,
+    return Solution(triples, res.status, res.objective, res.bound, res.gap, seconds,
                     res.message)
 
 
@@ -315,13 +157,14 @@ _code_hash: str | None = None
 
 
 def _code_version() -> str:
-    """A hash of the code a solution depends on (this module, the model tables, scipy)."""
+    """A hash of the code a solution depends on (this module, the model's, the model tables,
+    scipy)."""
     global _code_hash
     if _code_hash is None:
         import scipy
 
         h = hashlib.sha256(f"{CACHE_FORMAT} scipy {scipy.__version__}".encode())
-        for module_file in (__file__, tables.__file__):
+        for module_file in (__file__, milp_model.__file__, tables.__file__):
             h.update(Path(module_file).read_bytes())
         _code_hash = h.hexdigest()
     return _code_hash
