@@ -40,6 +40,7 @@ from ata.plugins.policies.milp_model import (  # noqa: F401  (the model's names,
     STATUS_TEXT, MilpSettings, Model, ScenarioData, Solution, assign_robots, build_model,
     check_choice)
 
+
 def solve_scenario(d: ScenarioData, s: MilpSettings) -> Solution:
     """Build, solve and check one scenario's MILP. When the redundancy requirement makes the
     model infeasible, its margins are relaxed (scaled by each of `RELAX_STEPS` in turn); the
@@ -56,7 +57,6 @@ def solve_scenario(d: ScenarioData, s: MilpSettings) -> Solution:
 
 RELAX_STEPS = (1.0, 0.5, 0.0)
 """Scales of the redundancy margins tried in turn when the model is infeasible."""
-
 
 RESTRICTED_GAP = 1e-3
 """The relative gap the restricted MILP of `_solve_model`'s second solve stops at."""
