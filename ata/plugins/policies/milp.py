@@ -36,7 +36,7 @@ from ata.model.greedy_planner import GreedySettings, plan
 from ata.model.plan import believed, fatigue_belief, seen
 from ata.model.team import HumanConstants, RobotConstants
 from ata.plugins.policies import milp_model
-from ata.plugins.policies.milp_model import (  # noqa: F401  (the model's names, here too)
+from ata.plugins.policies.milp_model import (
     STATUS_TEXT, MilpSettings, Model, ScenarioData, Solution, assign_robots, build_model,
     check_choice)
 
