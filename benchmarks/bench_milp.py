@@ -62,7 +62,7 @@ def main() -> None:
                       f"{secs.mean():.2f} s", f"{secs.max():.2f} s",
                       f"{100 * np.nanmedian(gaps):.2f}%", f"{100 * np.nanmax(gaps):.2f}%",
                       str(int((status == 0).sum())),
-                      str(sum("restricted MILP" in s.message for s in sols)),
+                      str(sum(s.message == M.BY_LP_BOUND for s in sols)),
                       str(int((status == 1).sum())),
                       str(int(sum(s.margin_scale < 1 for s in sols))),
                       str(int(sum(s.triples is None for s in sols))))

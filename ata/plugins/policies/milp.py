@@ -60,6 +60,9 @@ RELAX_STEPS = (1.0, 0.5, 0.0)
 
 RESTRICTED_GAP = 1e-3
 """The relative gap the restricted MILP of `_solve_model`'s second solve stops at."""
+BY_LP_BOUND = ("optimal within the gap of the LP relaxation's bound (the restricted MILP's "
+               "solution)")
+"""The message of an answer of `_solve_model`'s first two solves (no branch and bound)."""
 
 
 class _Result(NamedTuple):
@@ -105,8 +108,7 @@ def _solve_model(model: Model, s: MilpSettings, t0: float) -> _Result:
             value, bound = float(model.value @ x), float(-lp.fun)
             gap = max(bound - value, 0.0) / max(abs(value), 1e-9)
             if gap <= s.mip_rel_gap:
-                return _Result(x, 0, value, bound, gap, "optimal within the gap of the LP "
-                               "relaxation's bound (the restricted MILP's solution)")
+                return _Result(x, 0, value, bound, gap, BY_LP_BOUND)
     res = milp(-model.value, integrality=np.ones(n), bounds=(0, 1), constraints=rows,
                options={"time_limit": left(), "node_limit": s.node_limit,
                         "mip_rel_gap": s.mip_rel_gap, "presolve": True})

@@ -43,5 +43,5 @@ class ItaPhase(PolicyPhase):
         net = self.tr.net
         emb = net.ita.encoder(to_tensors(rec.inherent, self.tr.device))
         logp, _ = D.trace_log_prob(net.ita, emb, rec.ita)
-        adv = scaled(shared_baseline_advantage(R["R_ITA"], self.tr.s.samples), logp.device)
+        adv = scaled(shared_baseline_advantage(R["R_ITA"], self.tr.s.samples), self.tr.device)
         return -(adv * logp).mean()
