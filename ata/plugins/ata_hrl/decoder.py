@@ -50,6 +50,24 @@ def _quiet(method):
     return wrapper
 
 
+def _fill(out: np.ndarray, parts: list) -> np.ndarray:
+    """Write `parts` side by side along `out`'s last axis and return `out` (float32): each part
+    a column (broadcast to ``out.shape[:-1]``) or a block of columns (``out.ndim`` dimensions),
+    cast as ``astype`` casts: the features np.stack and astype would give, without their
+    intermediate arrays (the decoder builds four such arrays at each of a decode's steps)."""
+    i = 0
+    for part in parts:
+        if np.ndim(part) == out.ndim:
+            w = part.shape[-1]
+            out[..., i:i + w] = part
+            i += w
+        else:
+            out[..., i] = part
+            i += 1
+    assert i == out.shape[-1]
+    return out
+
+
 @dataclass(frozen=True)
 class DecodeSettings:
     """The constants the decoder assumes beside the plan start's: the human model's utilisation
@@ -285,18 +303,14 @@ class Decoder:
             prev_feats[:, 0] = self.previous.robot[ce, cp] == rf
             prev_feats[:, 1] = self.prev_valid[ce, cp]
             prev_feats[:, 2] = self.previous.classifier[ce, cp] >= 0
-        feats[ce, cp] = np.concatenate([
-            np.stack([np.clip((arr_ff - self.now) / hz, 0, 2),
-                      np.clip((arr_nav - self.now) / hz, 0, 2),
-                      ev_auto / 35.0, ev_navq / 35.0, hum_best[:, 0] / 35.0,
-                      hum_best[:, 1] / 35.0,
-                      np.clip(np.where(np.isfinite(rates[:, 0]), rates[:, 0], -0.1) * 20, -2, 2),
-                      np.clip(np.where(np.isfinite(rates[:, 1]), rates[:, 1], -0.1) * 20, -2, 2),
-                      np.clip((other_arr - arr_ff) / hz, -2, 2),
-                      (ev_all - ev_auto) / 35.0,
-                      pts / 35.0, kind.astype(float), d / 2.0,
-                      np.clip((hz - t_ff) / hz, 0, 1), left_share], -1),
-            prev_feats], -1)
+        feats[ce, cp] = _fill(np.empty((ce.size, POI_FEATURES), np.float32), [
+            np.clip((arr_ff - self.now) / hz, 0, 2), np.clip((arr_nav - self.now) / hz, 0, 2),
+            ev_auto / 35.0, ev_navq / 35.0, hum_best[:, 0] / 35.0, hum_best[:, 1] / 35.0,
+            np.clip(np.where(np.isfinite(rates[:, 0]), rates[:, 0], -0.1) * 20, -2, 2),
+            np.clip(np.where(np.isfinite(rates[:, 1]), rates[:, 1], -0.1) * 20, -2, 2),
+            np.clip((other_arr - arr_ff) / hz, -2, 2), (ev_all - ev_auto) / 35.0,
+            pts / 35.0, kind, d / 2.0, np.clip((hz - t_ff) / hz, 0, 1), left_share,
+            prev_feats])
         return StepInputs(feats, mask, prior, mask.any(axis=1))
 
     @_quiet
@@ -313,22 +327,21 @@ class Decoder:
         prev_r = np.zeros((E, R))
         if self.previous is not None:
             prev_r = (np.arange(R)[None, :] == self.previous.robot[e, p][:, None]).astype(float)
-        feats = np.concatenate([
-            np.stack([np.clip((arr_p - self.now) / hz, 0, 2),
-                      np.clip((np.where(self.robot_done, hz, self.robot_free) - self.now) / hz,
-                              0, 2),
-                      travel_p / hz, ev / 35.0, is_ff.astype(float),
-                      self.n_assigned / max(self.P, 1), prev_r,
-                      self.start.robot_type.astype(float)], -1),
-            np.eye(4)[q]], -1)
+        feats = _fill(np.empty((E, R, ROBOT_FEATURES), np.float32), [
+            np.clip((arr_p - self.now) / hz, 0, 2),
+            np.clip((np.where(self.robot_done, hz, self.robot_free) - self.now) / hz, 0, 2),
+            travel_p / hz, ev / 35.0, is_ff, self.n_assigned / max(self.P, 1), prev_r,
+            self.start.robot_type, np.eye(4)[q]])
         prior = is_ff.astype(float)
-        return StepInputs(feats.astype(np.float32), mask, prior, mask.any(1))
+        return StepInputs(feats, mask, prior, mask.any(1))
 
     @_quiet
     def nav_inputs(self, p: np.ndarray, r: np.ndarray) -> StepInputs:
         """Who drives robot r to POI p: autonomous, or one highly skilled human (index h + 1)."""
         E, H, s, e = self.E, self.H, self.s, self.e
-        tr = self._legs_to(e, p)[0][e, r]                                   # (E,)
+        gx = self.tx[e, p] - self.robot_xy[e, r, 0]
+        gy = self.ty[e, p] - self.robot_xy[e, r, 1]
+        tr = np.sqrt(gx * gx + gy * gy) / np.maximum(self.start.speed[e, r], 1e-9)   # (E,)
         t_r = self.robot_free[e, r]
         rtype = self.start.robot_type[e, r]
         kind, d = self.start.kind[e, p], self.start.diff[e, p]
@@ -354,15 +367,12 @@ class Decoder:
         prev_n = np.zeros((E, H + 1))
         if self.previous is not None:
             prev_n = (np.arange(H + 1)[None, :] == self.previous.navigator[e, p][:, None] + 1)
-        feats = np.concatenate([
-            np.stack([np.clip((arrive - self.now) / hz, 0, 2),
-                      np.clip((free - t_r[:, None]) / hz, 0, 2),
-                      np.where(human, leg / hz, 0.0), ev_on / 35.0,
-                      np.clip(rate * 20, -2, 2), util, prev_n.astype(float),
-                      human.astype(float) * np.ones((E, 1))], -1),
-            np.eye(4)[q]], -1)
+        feats = _fill(np.empty((E, H + 1, NAV_FEATURES), np.float32), [
+            np.clip((arrive - self.now) / hz, 0, 2), np.clip((free - t_r[:, None]) / hz, 0, 2),
+            np.where(human, leg / hz, 0.0), ev_on / 35.0, np.clip(rate * 20, -2, 2), util,
+            prev_n, human[0], np.eye(4)[q]])
         prior = np.where(mask, rate, -1.0)
-        return StepInputs(feats.astype(np.float32), mask, prior, np.ones(E, bool))
+        return StepInputs(feats, mask, prior, np.ones(E, bool))
 
     @_quiet
     def cls_inputs(self, p: np.ndarray, r: np.ndarray, n: np.ndarray) -> StepInputs:
@@ -388,19 +398,17 @@ class Decoder:
             prev_c = (np.arange(H + 1)[None, :] == self.previous.classifier[e, p][:, None] + 1)
             moved = self.previous.classifier[e, p][:, None] != np.arange(H)[None, :]
             rebrief = (moved & ~self.touched).astype(float) * (s.rebrief_s > 0)
-        human_feats = np.stack([ev_h / 35.0, p_h, np.clip((fin - self.now) / hz, 0, 2),
-                                np.clip((begin - arrive[:, None]) / hz, 0, 2), u, f_w, f_f,
-                                np.broadcast_to(t_bar[:, None] / hz, (E, H)), net_g / 35.0,
-                                rebrief, np.ones((E, H))], -1)
-        onboard = np.stack([ev_on / 35.0, p_on, np.clip((arrive - self.now) / hz, 0, 2),
-                            np.zeros(E), np.zeros(E), np.ones(E), np.ones(E), np.zeros(E),
-                            ev_on / 35.0, np.zeros(E), np.zeros(E)], -1)[:, None, :]
-        feats = np.concatenate([np.concatenate([onboard, human_feats], 1),
-                                prev_c[..., None].astype(float),
-                                np.broadcast_to(np.eye(4)[q][:, None, :2], (E, H + 1, 2))], -1)
+        # candidate 0 onboard, then the humans; the last three columns are everyone's
+        feats = np.empty((E, H + 1, CLS_FEATURES), np.float32)
+        _fill(feats[:, 0, :11], [ev_on / 35.0, p_on, np.clip((arrive - self.now) / hz, 0, 2),
+                                 0.0, 0.0, 1.0, 1.0, 0.0, ev_on / 35.0, 0.0, 0.0])
+        _fill(feats[:, 1:, :11], [ev_h / 35.0, p_h, np.clip((fin - self.now) / hz, 0, 2),
+                                  np.clip((begin - arrive[:, None]) / hz, 0, 2), u, f_w, f_f,
+                                  t_bar[:, None] / hz, net_g / 35.0, rebrief, 1.0])
+        _fill(feats[..., 11:], [prev_c, np.eye(4)[q][:, None, :2]])
         prior = np.concatenate([ev_on[:, None], net_g], 1)
         mask = np.ones((E, H + 1), bool)
-        return StepInputs(feats.astype(np.float32), mask, prior, np.ones(E, bool))
+        return StepInputs(feats, mask, prior, np.ones(E, bool))
 
     def _route(self, e, p, r, n) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Robot r to POI p with navigator n (-1 auto), in episodes e: when it sets off (with

@@ -20,6 +20,7 @@ from dataclasses import asdict, dataclass
 
 import torch
 from torch import nn
+from torch.nn import functional as F
 
 from ata.plugins.ata_hrl.decoder import (CLS_FEATURES, KEEP_FEATURES, NAV_FEATURES,
                                          POI_FEATURES, ROBOT_FEATURES)
@@ -122,12 +123,17 @@ class StepScorer(nn.Module):
         `_legal_hidden`)."""
         logit = self.log_scale.exp() * prior
         if residual:
-            cand_h = self.cand(cand) if cand_hidden is None else cand_hidden
+            # the layers' own functions (F.linear, torch.relu) without the modules' per-call
+            # machinery, which a decode pays at each of its thousands of steps: the same ops
+            feat, out = self.feat, self.out[3]
+            cand_h = F.linear(cand, self.cand.weight) if cand_hidden is None else cand_hidden
             if legal is None:
-                hid = self._hidden(self.feat(feats) + cand_h + self.ctx(ctx)[..., None, :])
+                hid = self._hidden(F.linear(feats, feat.weight, feat.bias) + cand_h
+                                   + F.linear(ctx, self.ctx.weight)[..., None, :])
             else:
                 hid = self._legal_hidden(feats, cand_h, ctx, legal)
-            logit = logit + self.out[3](hid)[..., 0] + self.linear(feats)[..., 0]
+            logit = (logit + F.linear(hid, out.weight, out.bias)[..., 0]
+                     + F.linear(feats, self.linear.weight, self.linear.bias)[..., 0])
         return logit.masked_fill(~mask, NEG)
 
     def _legal_hidden(self, feats: torch.Tensor, cand_h: torch.Tensor, ctx: torch.Tensor,
@@ -139,21 +145,24 @@ class StepScorer(nn.Module):
         (tests/test_ata_hrl.py checks that the logits do not change). The output layer, of one
         unit, gives a row a result that depends on the matrix's shape: it runs on the whole
         (E, N, h), as without `legal`."""
-        E, N, F = feats.shape
+        E, N, nf = feats.shape
         h = cand_h.shape[-1]
         full = feats.new_zeros(E * N, h)
         k = legal.shape[0]
         if k:
             rows = legal if k >= MIN_ROWS else torch.cat([legal, legal[:1].expand(MIN_ROWS - k)])
-            hid = (self.feat(feats.reshape(E * N, F).index_select(0, rows))
+            feat = self.feat
+            hid = (F.linear(feats.reshape(E * N, nf).index_select(0, rows), feat.weight,
+                            feat.bias)
                    + cand_h.reshape(E * N, h).index_select(0, rows)
-                   + self.ctx(ctx).index_select(0, rows // N))
+                   + F.linear(ctx, self.ctx.weight).index_select(0, rows // N))
             full.index_copy_(0, legal, self._hidden(hid)[:k])
         return full.reshape(E, N, h)
 
     def _hidden(self, x: torch.Tensor) -> torch.Tensor:
         """`out` but its output layer: activation, hidden layer, activation."""
-        return self.out[2](self.out[1](self.out[0](x)))
+        layer = self.out[1]
+        return torch.relu(F.linear(torch.relu(x), layer.weight, layer.bias))
 
 
 class KeepScorer(nn.Module):
