@@ -49,26 +49,30 @@ class HumanLoad:
             self._fatigue = self.start.belief.at(self.start.hours + self.booked / 3600.0)
         return self._fatigue
 
-    def _cum_at(self, t: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    def _cum_at(self, t: np.ndarray, base: np.ndarray) -> np.ndarray:
         """Cumulative busy seconds of every human by times t (E, N, H) (linear within a bin);
-        `rows`: the plan of each row of t (default: row i is plan i)."""
-        G = self.edges.size
+        `base` (E, 1, H): where each row's human's grid starts in the flat grid (`_base`)."""
         x = np.clip(t, 0.0, self.edges[-1]) / BIN_S
-        k = np.minimum(x.astype(np.int64), G - 2)
+        k = np.minimum(x.astype(np.int64), self.edges.size - 2)
         frac = x - k
-        E, H = self.free.shape
         flat = self.cum.reshape(-1)
-        plans = np.arange(E) if rows is None else rows
-        base = ((plans[:, None] * H + np.arange(H)[None, :]) * G)[:, None, :]
         at = base + k
         lo = flat.take(at)
         return lo + frac * (flat.take(at + 1) - lo)
+
+    def _base(self, rows: np.ndarray | None) -> np.ndarray:
+        """(E, 1, H): the flat index of each human's first grid edge, for rows of plans `rows`
+        (default: row i is plan i)."""
+        E, H = self.free.shape
+        plans = np.arange(E) if rows is None else rows
+        return ((plans[:, None] * H + np.arange(H)[None, :]) * self.edges.size)[:, None, :]
 
     def utilisation_at(self, t: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         """Projected busy share of [t - window, t] of every human, t (E, N, H); `rows` as in
         `classification`."""
         w = self.window_s
-        busy = self._cum_at(t, rows) - self._cum_at(t - w, rows)
+        base = self._base(rows)
+        busy = self._cum_at(t, base) - self._cum_at(t - w, base)
         span = np.minimum(w, np.maximum(t, 1e-9))
         return np.clip(busy / span, 0.0, 1.0)
 

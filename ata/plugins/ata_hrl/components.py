@@ -30,7 +30,7 @@ from ata.plugins.ata_hrl.status import StatusTracker, guesses as status_guesses
 from ata.model.fatigue import FatigueBelief
 from ata.model.greedy_planner import GreedyPlanner, GreedySettings
 from ata.model.plan import PlanStart, as_seen, plan_start, project, task_attributes
-from ata.model.retask import retask_cost, worth
+from ata.model.retask import retask_cost, worth_many
 from ata.model.team import HumanConstants
 
 
@@ -296,8 +296,9 @@ class CTRPolicy(LearnedComponent):
         allocation and which scenarios took the re-plan."""
         full = D.decode(dec, self.net.tr, emb, D.argmax_chooser, residual=self.settings.learned)
         cost, at, price = retask_cost(sub), plan_start(sub), self.greedy.s.human_time_cost
-        worth_alloc = worth(sub, at, alloc, sub.reallocatable, cost, price)
-        worth_full = worth(sub, at, full, sub.reallocatable, cost, price)
+        # both in one projection (the re-plan's rows where it differs from `alloc`)
+        worth_alloc, worth_full = worth_many(sub, at, [alloc, full], sub.reallocatable, cost,
+                                             price).T
         take = worth_full > worth_alloc + 1e-9
         return full.where(take[:, None] & sub.reallocatable, alloc), take
 

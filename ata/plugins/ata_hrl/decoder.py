@@ -194,9 +194,11 @@ class Decoder:
 
     def _best_net(self, net: np.ndarray, fin: np.ndarray) -> np.ndarray:
         """The best human's net value (E, N), 0 where that human would finish too late."""
-        best = net.argmax(-1)[..., None]
-        return np.where(np.take_along_axis(fin, best, -1)[..., 0] <= self.horizon,
-                        np.take_along_axis(net, best, -1)[..., 0], 0.0)
+        best = net.argmax(-1)
+        # the best human's entries by flat takes (the arrays are fresh, hence contiguous)
+        at = np.arange(best.size) * net.shape[-1] + best.ravel()
+        return np.where(fin.ravel().take(at).reshape(best.shape) <= self.horizon,
+                        net.ravel().take(at).reshape(best.shape), 0.0)
 
     # -- sub-decisions ---------------------------------------------------------------------------
     def keep_inputs(self, expected: np.ndarray, finish: np.ndarray, changed: np.ndarray,
@@ -415,7 +417,7 @@ class Decoder:
         its navigator free), its travel seconds and the image quality."""
         gx = self.tx[e, p] - self.robot_xy[e, r, 0]
         gy = self.ty[e, p] - self.robot_xy[e, r, 1]
-        cls_ = tables.navigator_class(n[:, None], self.start.skill[e])[:, 0]
+        cls_ = np.where(n < 0, 1, self.start.skill[e, np.maximum(n, 0)])   # navigator_class
         v = self.start.speed[e, r] * np.where(n >= 0, tables.SKILL_SPEED[cls_], 1.0)
         nav_h = np.maximum(n, 0)
         depart = np.where(n >= 0, np.maximum(self.robot_free[e, r], self.human_free[e, nav_h]),
