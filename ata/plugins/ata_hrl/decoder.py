@@ -195,7 +195,8 @@ class Decoder:
     def _best_net(self, net: np.ndarray, fin: np.ndarray) -> np.ndarray:
         """The best human's net value (E, N), 0 where that human would finish too late."""
         best = net.argmax(-1)
-        # the best human's entries by flat takes (the arrays are fresh, hence contiguous)
+        # the best human's entries by flat takes (cheaper than take_along_axis; ravel is a view
+        # of these freshly computed arrays)
         at = np.arange(best.size) * net.shape[-1] + best.ravel()
         return np.where(fin.ravel().take(at).reshape(best.shape) <= self.horizon,
                         net.ravel().take(at).reshape(best.shape), 0.0)
@@ -400,14 +401,17 @@ class Decoder:
             prev_c = (np.arange(H + 1)[None, :] == self.previous.classifier[e, p][:, None] + 1)
             moved = self.previous.classifier[e, p][:, None] != np.arange(H)[None, :]
             rebrief = (moved & ~self.touched).astype(float) * (s.rebrief_s > 0)
-        # candidate 0 onboard, then the humans; the last three columns are everyone's
+        # candidate 0 onboard, then the humans, `own` columns each; the last three: whether the
+        # candidate classifies in the allocation in force, and the image quality's first two
+        # one-hot columns
+        own = CLS_FEATURES - 3
         feats = np.empty((E, H + 1, CLS_FEATURES), np.float32)
-        _fill(feats[:, 0, :11], [ev_on / 35.0, p_on, np.clip((arrive - self.now) / hz, 0, 2),
-                                 0.0, 0.0, 1.0, 1.0, 0.0, ev_on / 35.0, 0.0, 0.0])
-        _fill(feats[:, 1:, :11], [ev_h / 35.0, p_h, np.clip((fin - self.now) / hz, 0, 2),
-                                  np.clip((begin - arrive[:, None]) / hz, 0, 2), u, f_w, f_f,
-                                  t_bar[:, None] / hz, net_g / 35.0, rebrief, 1.0])
-        _fill(feats[..., 11:], [prev_c, np.eye(4)[q][:, None, :2]])
+        _fill(feats[:, 0, :own], [ev_on / 35.0, p_on, np.clip((arrive - self.now) / hz, 0, 2),
+                                  0.0, 0.0, 1.0, 1.0, 0.0, ev_on / 35.0, 0.0, 0.0])
+        _fill(feats[:, 1:, :own], [ev_h / 35.0, p_h, np.clip((fin - self.now) / hz, 0, 2),
+                                   np.clip((begin - arrive[:, None]) / hz, 0, 2), u, f_w, f_f,
+                                   t_bar[:, None] / hz, net_g / 35.0, rebrief, 1.0])
+        _fill(feats[..., own:], [prev_c, np.eye(4)[q][:, None, :2]])
         prior = np.concatenate([ev_on[:, None], net_g], 1)
         mask = np.ones((E, H + 1), bool)
         return StepInputs(feats, mask, prior, np.ones(E, bool))
