@@ -342,9 +342,7 @@ class Decoder:
     def nav_inputs(self, p: np.ndarray, r: np.ndarray) -> StepInputs:
         """Who drives robot r to POI p: autonomous, or one highly skilled human (index h + 1)."""
         E, H, s, e = self.E, self.H, self.s, self.e
-        gx = self.tx[e, p] - self.robot_xy[e, r, 0]
-        gy = self.ty[e, p] - self.robot_xy[e, r, 1]
-        tr = np.sqrt(gx * gx + gy * gy) / np.maximum(self.start.speed[e, r], 1e-9)   # (E,)
+        tr = self._distance(e, p, r) / np.maximum(self.start.speed[e, r], 1e-9)   # (E,)
         t_r = self.robot_free[e, r]
         rtype = self.start.robot_type[e, r]
         kind, d = self.start.kind[e, p], self.start.diff[e, p]
@@ -416,18 +414,22 @@ class Decoder:
         mask = np.ones((E, H + 1), bool)
         return StepInputs(feats, mask, prior, np.ones(E, bool))
 
+    def _distance(self, e: np.ndarray, p: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """Metres from robot r's projected position to POI p, in episodes e (each (n,))."""
+        gx = self.tx[e, p] - self.robot_xy[e, r, 0]
+        gy = self.ty[e, p] - self.robot_xy[e, r, 1]
+        return np.sqrt(gx * gx + gy * gy)
+
     def _route(self, e, p, r, n) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Robot r to POI p with navigator n (-1 auto), in episodes e: when it sets off (with
         its navigator free), its travel seconds and the image quality."""
-        gx = self.tx[e, p] - self.robot_xy[e, r, 0]
-        gy = self.ty[e, p] - self.robot_xy[e, r, 1]
-        cls_ = np.where(n < 0, 1, self.start.skill[e, np.maximum(n, 0)])   # navigator_class
+        cls_ = tables.navigator_class(n[:, None], self.start.skill[e])[:, 0]
         v = self.start.speed[e, r] * np.where(n >= 0, tables.SKILL_SPEED[cls_], 1.0)
         nav_h = np.maximum(n, 0)
         depart = np.where(n >= 0, np.maximum(self.robot_free[e, r], self.human_free[e, nav_h]),
                           self.robot_free[e, r])
         q = tables.QUALITY[self.start.robot_type[e, r], self.start.kind[e, p], cls_]
-        return depart, np.sqrt(gx * gx + gy * gy) / np.maximum(v, 1e-9), q
+        return depart, self._distance(e, p, r) / np.maximum(v, 1e-9), q
 
     def _arrival(self, p: np.ndarray, r: np.ndarray, n: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
