@@ -161,8 +161,10 @@ def eval_(paths: List[str] = typer.Argument(
                                                 help="Worker processes (process: default one "
                                                      "per core) or local Ray CPUs."),
           address: Optional[str] = AddressOption,
-          chunk_size: int = typer.Option(50, "--chunk-size", min=1, metavar="N",
-                                         help="Scenarios per work unit."),
+          chunk_size: Optional[int] = typer.Option(
+              None, "--chunk-size", min=1, metavar="N",
+              help="Scenarios per work unit (default 250): each unit is saved as it ends, "
+                   "bigger ones run faster."),
           scenarios: Optional[int] = typer.Option(None, "--scenarios", "-n", min=1, metavar="N",
                                                   help="Scenarios per (method, setting, level) "
                                                        "(default: the suite's, else 500)."),
@@ -196,6 +198,7 @@ def eval_(paths: List[str] = typer.Argument(
     if executor not in EXECUTORS:
         raise MissionError("--executor", None, f"unknown executor {executor!r}; choose one of "
                            + ", ".join(EXECUTORS))
+    chunk_size = chunk_size or ev.DEFAULT_CHUNK
     # every job is built and validated before any scenario runs or anything is written
     suites, jobs = ev.plan(list(paths), scenarios=scenarios, seed=seed,
                            methods=_split_or_none(methods), settings=_split_or_none(settings),

@@ -95,6 +95,8 @@ def test_results_schema_and_run_folder(cli, suite, tmp_path):
     assert set(meta["method_wall_s"]) == {"greedy", "random"}
     assert meta["suites"][0]["content"]["suite"]["name"] == "tiny"
     assert meta["arguments"]["executor"] == {"executor": "serial"}
+    # without --chunk-size, the units are of the default size
+    assert meta["arguments"]["chunk_size"] == ev.DEFAULT_CHUNK == 250
     # a resolved mission reruns with `ata run` to the very same scores
     session = load_session(str(out / "missions" / "greedy__a__high.resolved.toml"))
     again = run_mission(session)
