@@ -132,9 +132,16 @@ def test_a_folder_of_another_plan_is_refused_unless_forced(suite, tmp_path, unin
     proc = ata_eval(other, uninterrupted, "--executor", "serial")
     assert proc.wait(timeout=300) == 2
     err = " ".join(proc.stderr.read().split())
-    assert err == (f"error: --out: {uninterrupted} holds the results of another plan; choose "
-                   "another folder, or --force to start it over there")
+    assert err == (f"error: --out: {uninterrupted} holds the results of another plan (paths "
+                   f"{suite} there, {other} here); choose another folder, or --force to start "
+                   "it over there")
     assert len(rows(uninterrupted)) == 96            # untouched
+    # the same suite in other work units: the message names the chunk size
+    proc = ata_eval(suite, uninterrupted, "--executor", "serial", "--chunk-size", "3")
+    assert proc.wait(timeout=300) == 2
+    err = " ".join(proc.stderr.read().split())
+    assert "holds the results of another plan (chunk_size 4 there, 3 here)" in err, err
+    assert len(rows(uninterrupted)) == 96
     proc = ata_eval(other, uninterrupted, "--executor", "serial", "--force")
     assert proc.wait(timeout=300) == 0, proc.stderr.read()
     assert len(rows(uninterrupted)) == 32

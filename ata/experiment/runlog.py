@@ -93,6 +93,21 @@ PER_RUN = ("warnings", "wall_s")
 """The entries of a unit's results that are not one value per scenario."""
 
 
+def _differences(before: Any, describe: dict[str, Any] | None) -> str:
+    """What the folder's plan.json (`before`) describes otherwise than this plan, for the
+    refusal's message ('' when the descriptions agree: the difference is in what they do not
+    show, such as component versions or weights)."""
+    if not isinstance(before, dict) or not describe:
+        return ""
+    def show(value: Any) -> str:
+        return ", ".join(map(str, value)) if isinstance(value, list) else str(value)
+
+    now = json.loads(json.dumps(describe, default=str))
+    diffs = [f"{k} {show(before[k])} there, {show(now[k])} here" for k in now
+             if k in before and before[k] != now[k]]
+    return f" ({'; '.join(diffs)})" if diffs else ""
+
+
 class RunLog:
     """Opens (or resumes) the record of a plan in `out_dir`.
 
@@ -121,18 +136,19 @@ class RunLog:
         plan, log = self.dir / PLAN, self.dir / UNITS
         self.path = log
         try:
-            same = False
+            same, before = False, {}
             if plan.exists():
                 try:
-                    same = json.loads(plan.read_text(encoding="utf-8")).get("key") == key
+                    before = json.loads(plan.read_text(encoding="utf-8"))
+                    same = before.get("key") == key
                 except (json.JSONDecodeError, AttributeError, UnicodeDecodeError):
-                    same = False
+                    same, before = False, {}
             holds = ((self.dir / "results.csv").exists()
                      or (log.exists() and log.stat().st_size > 0))
             if not same and not force and holds:
                 raise MissionError("--out", None, f"{self.dir} holds the results of another "
-                                   "plan; choose another folder, or --force to start it over "
-                                   "there")
+                                   f"plan{_differences(before, describe)}; choose another "
+                                   "folder, or --force to start it over there")
             if same:
                 self.done = self._read(log, repair=True)
             else:
