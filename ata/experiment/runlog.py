@@ -99,6 +99,7 @@ def _differences(before: Any, describe: dict[str, Any] | None) -> str:
     show, such as component versions or weights)."""
     if not isinstance(before, dict) or not describe:
         return ""
+
     def show(value: Any) -> str:
         return ", ".join(map(str, value)) if isinstance(value, list) else str(value)
 

@@ -94,6 +94,12 @@ CPU's matrix product may round a row otherwise when it multiplies only a few (on
 on the CPUs tried), and from this many on each row comes out as among all of them."""
 
 
+def _linear(layer: nn.Linear, x: torch.Tensor) -> torch.Tensor:
+    """`layer(x)` by `F.linear` (its weight and its bias, None where it has none): the same op
+    without the module's per-call machinery."""
+    return F.linear(x, layer.weight, layer.bias)
+
+
 class StepScorer(nn.Module):
     """Logits of one sub-decision: MLP(features, candidate, context) + scale * prior."""
 
@@ -123,17 +129,16 @@ class StepScorer(nn.Module):
         `_legal_hidden`)."""
         logit = self.log_scale.exp() * prior
         if residual:
-            # the layers' own functions (F.linear, torch.relu) without the modules' per-call
+            # the layers' own functions (`_linear`, torch.relu) without the modules' per-call
             # machinery, which a decode pays at each of its thousands of steps: the same ops
-            feat, out = self.feat, self.out[3]
-            cand_h = F.linear(cand, self.cand.weight) if cand_hidden is None else cand_hidden
+            cand_h = _linear(self.cand, cand) if cand_hidden is None else cand_hidden
             if legal is None:
-                hid = self._hidden(F.linear(feats, feat.weight, feat.bias) + cand_h
-                                   + F.linear(ctx, self.ctx.weight)[..., None, :])
+                hid = self._hidden(_linear(self.feat, feats) + cand_h
+                                   + _linear(self.ctx, ctx)[..., None, :])
             else:
                 hid = self._legal_hidden(feats, cand_h, ctx, legal)
-            logit = (logit + F.linear(hid, out.weight, out.bias)[..., 0]
-                     + F.linear(feats, self.linear.weight, self.linear.bias)[..., 0])
+            logit = (logit + _linear(self.out[3], hid)[..., 0]
+                     + _linear(self.linear, feats)[..., 0])
         return logit.masked_fill(~mask, NEG)
 
     def _legal_hidden(self, feats: torch.Tensor, cand_h: torch.Tensor, ctx: torch.Tensor,
@@ -151,18 +156,15 @@ class StepScorer(nn.Module):
         k = legal.shape[0]
         if k:
             rows = legal if k >= MIN_ROWS else torch.cat([legal, legal[:1].expand(MIN_ROWS - k)])
-            feat = self.feat
-            hid = (F.linear(feats.reshape(E * N, nf).index_select(0, rows), feat.weight,
-                            feat.bias)
+            hid = (_linear(self.feat, feats.reshape(E * N, nf).index_select(0, rows))
                    + cand_h.reshape(E * N, h).index_select(0, rows)
-                   + F.linear(ctx, self.ctx.weight).index_select(0, rows // N))
+                   + _linear(self.ctx, ctx).index_select(0, rows // N))
             full.index_copy_(0, legal, self._hidden(hid)[:k])
         return full.reshape(E, N, h)
 
     def _hidden(self, x: torch.Tensor) -> torch.Tensor:
         """`out` but its output layer: activation, hidden layer, activation."""
-        layer = self.out[1]
-        return torch.relu(F.linear(torch.relu(x), layer.weight, layer.bias))
+        return torch.relu(_linear(self.out[1], torch.relu(x)))
 
 
 class KeepScorer(nn.Module):
