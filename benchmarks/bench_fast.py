@@ -43,6 +43,7 @@ from ata.experiment.runner import BASELINE_MISSION, BUILTIN_MISSION, load_sessio
 from ata.experiment.units import RUN_CHUNK, fixed_chunks, scenario_ids  # noqa: E402
 
 ATA_HRL_B = HERE.parent / "examples" / "missions" / "ata_hrl_b.toml"
+NO_REPLAN = "ATA-HRL without its full re-plan (ctr.replan_in_full=false)"
 # the quick suite runs 50 scenarios a cell, one unit of 50 per cell. Each unit pays a fixed
 # time beside its scenarios' (the learned methods' decoder steps), which the full suite, in
 # units of 250 (`ata eval`'s default), pays a fifth as often: the tenfold extrapolation is an
@@ -87,6 +88,9 @@ def figure_per_scenario(cfg: dict) -> None:
                         f"mission.setting='{setting}'", f"mission.scenarios={n}"]),
                     "ATA-HRL": load_session(str(BUILTIN_MISSION if setting == "a"
                                                 else ATA_HRL_B), [f"mission.scenarios={n}"])}
+        # beside the figure, not in it: ATA-HRL without its full re-plan, what that costs
+        sessions[NO_REPLAN] = load_session(str(BUILTIN_MISSION if setting == "a" else ATA_HRL_B),
+                                           [f"mission.scenarios={n}", "ctr.replan_in_full=false"])
         # the two in alternation, each keeping its least time (a run on a shared machine is
         # only ever slowed by other work): greedy's few seconds vary most
         cpu = {name: float("inf") for name in sessions}
@@ -97,6 +101,9 @@ def figure_per_scenario(cfg: dict) -> None:
         say(f"[2] ({setting}) {n} scenarios in batches of <= {RUN_CHUNK}, CPU seconds (least of "
             f"{cfg['least_of']} alternating runs): ATA-HRL {cpu['ATA-HRL']:.1f} s, greedy "
             f"{cpu['greedy']:.1f} s")
+        say(f"[2] ({setting}) {NO_REPLAN}: {cpu[NO_REPLAN]:.1f} s, "
+            f"{cpu[NO_REPLAN] / cpu['greedy']:.1f}x greedy (a speed it buys with points: "
+            "docs/findings.md)")
         say(f"(2) ATA-HRL per scenario vs greedy ({setting}): "
             f"{cpu['ATA-HRL'] / cpu['greedy']:.1f}x (goal <= 2x)", summary=True)
 
@@ -135,11 +142,11 @@ def figure_batch_and_memory(cfg: dict, do_batch: bool, do_memory: bool) -> None:
         rows = bench_memory.poi_growth(cfg["pois"], cfg["poi_batch"])
         for r in rows:
             say(f"[5] team (a) with {r['pois']} POIs, greedy + realloc, batch "
-                f"{cfg['poi_batch']}: traced peak {r['traced_peak_mib']:.1f} MiB, "
-                f"{r['growth_mib']:.1f} MiB over the peak at 10 POIs")
-        law = ", ".join(f"{r['pois']}: {r['exponent']:.2f}" for r in rows[1:])
-        say(f"(5) peak memory growth exponent in POIs (at {law}) (goal: 1, linear)",
-            summary=True)
+                f"{cfg['poi_batch']}: traced peak {r['traced_peak_mib']:.1f} MiB"
+                f"{bench_memory.describe(r)}")
+        law = ", ".join(f"{r['exponent']:.2f}" for r in rows if "exponent" in r) or "none"
+        say(f"(5) peak memory growth exponent in POIs, from its slopes: {law} (goal: 1, "
+            "linear; 2 is quadratic)", summary=True)
 
 
 def figure_recipe(cfg: dict) -> None:

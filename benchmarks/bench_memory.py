@@ -1,6 +1,6 @@
 """Peak memory of a greedy run: setting (b) at batch 500, and how it grows with the number of POIs.
 
-Usage: python benchmarks/bench_memory.py [--pois 60,130,260,520] [--batch 20]
+Usage: python benchmarks/bench_memory.py [--pois 130,260,520] [--batch 20]
 
 Each run is made in a fresh child process, so that its peak is its own:
 
@@ -11,10 +11,13 @@ Each run is made in a fresh child process, so that its peak is its own:
   run's start): exact and free of the allocator's noise, but it slows the run, so a traced run is
   not timed.
 
-The growth law is the slope of log(peak - floor) against log(POIs) between neighbouring sizes,
-where the floor is the traced peak of the same run with 10 POIs (what does not grow with the
-POIs: the scenario setup, the records of the other groups): 1 is linear, 2 quadratic (greedy's
-(batch, POIs, POIs) distance arrays).
+The growth law reads the slope of the traced peak between neighbouring sizes, in KiB per
+scenario and added POI: it stays the same from size to size where the peak grows linearly, and
+doubles with the POIs where it grows quadratically (greedy's old (batch, POIs, POIs) distance
+arrays). The exponent between two slopes is 1 + log(slope ratio) / log(ratio of the intervals'
+midpoints): 1 linear, 2 quadratic. The peak's growth over its value at a few POIs would read
+less: at small sizes the peak is set by what does not grow with the POIs (the scenario setup,
+the records of the other groups), so that growth reads 0 there.
 """
 
 from __future__ import annotations
@@ -72,27 +75,37 @@ def isolated(setting: str, extra: list[str], scenarios: int, batch: int,
 
 
 def poi_growth(pois: list[int], batch: int) -> list[dict]:
-    """Traced peak memory of greedy (with reallocation) on the (a) team with `pois` POIs, one
-    batch of `batch` scenarios each, its growth over the floor (the peak at 10 POIs), and the
-    growth exponent from the size before."""
+    """Traced peak memory of greedy (with reallocation) on the (a) team with `pois` POIs (in
+    increasing order), one batch of `batch` scenarios each, read by `growth_law`."""
     rows = []
-    floor = isolated("a", ["mission.tasks=10", *GREEDY_REALLOC], batch, batch,
-                     traced=True)["traced_peak_mib"]
     for p in pois:
         r = isolated("a", [f"mission.tasks={p}", *GREEDY_REALLOC], batch, batch, traced=True)
-        r["pois"] = p
-        r["growth_mib"] = max(r["traced_peak_mib"] - floor, 1e-9)
-        if rows:
-            prev = rows[-1]
-            r["exponent"] = math.log(r["growth_mib"] / prev["growth_mib"]) \
-                / math.log(p / prev["pois"])
-        rows.append(r)
-    return rows
+        rows.append({**r, "pois": p})
+    return growth_law(rows, batch)
+
+
+def growth_law(rows: list[dict], batch: int) -> list[dict]:
+    """`rows` (``pois`` increasing, ``traced_peak_mib``) with, from the second on, the slope from
+    the row before (``slope_kib``, KiB per scenario and added POI) and from the third on the
+    exponent of the peak's growth between the two slopes (module doc)."""
+    out: list[dict] = []
+    for r in rows:
+        r = dict(r)
+        if out:
+            prev = out[-1]
+            r["slope_kib"] = (r["traced_peak_mib"] - prev["traced_peak_mib"]) * 1024 \
+                / (r["pois"] - prev["pois"]) / batch
+            r["mid"] = math.sqrt(r["pois"] * prev["pois"])
+            if prev.get("slope_kib", 0) > 0 and r["slope_kib"] > 0:
+                r["exponent"] = 1 + math.log(r["slope_kib"] / prev["slope_kib"]) \
+                    / math.log(r["mid"] / prev["mid"])
+        out.append(r)
+    return out
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--pois", default="60,130,260,520")
+    parser.add_argument("--pois", default="130,260,520", help="POI counts, increasing")
     parser.add_argument("--batch", type=int, default=20, help="scenarios (one batch) per size")
     parser.add_argument("--child", help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -104,12 +117,16 @@ def main() -> None:
           f"{b['rss_peak_mib']:.0f} MiB ({b['rss_base_mib']:.0f} MiB before the run), "
           f"{b['wall_s']:.1f} s")
     print(f"greedy + on_event realloc, team (a) with N POIs, batch {args.batch} (tracemalloc "
-          "peak, growth exponent from the size before):")
+          "peak; its slope from the size before, and the growth exponent between slopes):")
     for r in poi_growth([int(x) for x in args.pois.split(",")], args.batch):
-        exp = f", exponent {r['exponent']:.2f}" if "exponent" in r else ""
-        print(f"  {r['pois']:>5} POIs: {r['traced_peak_mib']:8.1f} MiB traced ("
-              f"{r['growth_mib']:.1f} over 10 POIs'), peak RSS "
-              f"{r['rss_peak_mib']:.0f} MiB{exp}")
+        print(f"  {r['pois']:>5} POIs: {r['traced_peak_mib']:8.1f} MiB traced, peak RSS "
+              f"{r['rss_peak_mib']:.0f} MiB{describe(r)}")
+
+
+def describe(row: dict) -> str:
+    """A `poi_growth` row's slope and exponent, as printed after its peak ('' for the first)."""
+    out = f", slope {row['slope_kib']:.2f} KiB per scenario and POI" if "slope_kib" in row else ""
+    return out + (f", exponent {row['exponent']:.2f}" if "exponent" in row else "")
 
 
 if __name__ == "__main__":

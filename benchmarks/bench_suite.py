@@ -75,7 +75,7 @@ def main() -> None:
             cells = [per.get((m, s), 0.0) for s in settings]
             print(f"| {m} | " + " | ".join(f"{c:.0f}" for c in cells) + f" | {sum(cells):.0f} |")
         total = sum(per.values())
-        print(f"| all (summed over workers) | " + " | ".join(
+        print("| all (summed over workers) | " + " | ".join(
             f"{sum(v for (m, s), v in per.items() if s == st):.0f}" for st in settings)
             + f" | {total:.0f} |")
 

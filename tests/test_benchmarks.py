@@ -38,6 +38,24 @@ def test_the_memory_benchmark_reports_a_child_run():
     assert out["traced_peak_mib"] > 0
 
 
+def test_the_memory_growth_law_reads_linear_as_1_and_quadratic_as_2():
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from bench_memory import growth_law
+    pois = [130, 260, 520, 1040]
+
+    def law(peak):
+        # a fixed 20 MiB beside the growth, as the interpreter and the setup give
+        rows = growth_law([{"pois": p, "traced_peak_mib": 20 + peak(p)} for p in pois], 5)
+        return [round(r["exponent"], 6) for r in rows if "exponent" in r]
+
+    assert law(lambda p: 0.01 * p) == [1.0, 1.0]
+    assert law(lambda p: 1e-5 * p * p) == [2.0, 2.0]
+    rows = growth_law([{"pois": 130, "traced_peak_mib": 21.5},
+                       {"pois": 260, "traced_peak_mib": 22.4}], 5)
+    assert "slope_kib" not in rows[0] and "exponent" not in rows[1]
+    assert abs(rows[1]["slope_kib"] - 0.9 * 1024 / 130 / 5) < 1e-9
+
+
 def test_the_fast_benchmark_driver_imports_every_figure():
     out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_fast.py"), "--help"],
                          capture_output=True, text=True, cwd=ROOT, timeout=120)
