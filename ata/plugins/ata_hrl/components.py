@@ -169,7 +169,8 @@ class CTRPolicy(LearnedComponent):
         replan_in_full: bool = param(True, help="also decode a full re-plan and take it where "
                                      "the model expects it to be worth more, net of the "
                                      "re-tasking cost (as greedy weighs its own); false: the "
-                                     "per-POI reallocation alone")
+                                     "per-POI reallocation alone, about a third of the run "
+                                     "time, fewer points (experiments/full_replan)")
 
     def __init__(self, settings: "CTRPolicy.Settings", mission: Any,
                  net: ATAHRLNet | None = None):
