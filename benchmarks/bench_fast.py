@@ -84,13 +84,13 @@ def figure_suite(cfg: dict) -> None:
 
 def figure_per_scenario(cfg: dict) -> None:
     for setting, n in cfg["per_scenario"].items():
+        ata_hrl = str(BUILTIN_MISSION if setting == "a" else ATA_HRL_B)
         sessions = {"greedy": load_session(str(BASELINE_MISSION), [
                         f"mission.setting='{setting}'", f"mission.scenarios={n}"]),
-                    "ATA-HRL": load_session(str(BUILTIN_MISSION if setting == "a"
-                                                else ATA_HRL_B), [f"mission.scenarios={n}"])}
-        # beside the figure, not in it: ATA-HRL without its full re-plan, what that costs
-        sessions[NO_REPLAN] = load_session(str(BUILTIN_MISSION if setting == "a" else ATA_HRL_B),
-                                           [f"mission.scenarios={n}", "ctr.replan_in_full=false"])
+                    "ATA-HRL": load_session(ata_hrl, [f"mission.scenarios={n}"]),
+                    # beside the figure, not in it: ATA-HRL without its full re-plan
+                    NO_REPLAN: load_session(ata_hrl, [f"mission.scenarios={n}",
+                                                      "ctr.replan_in_full=false"])}
         # the two in alternation, each keeping its least time (a run on a shared machine is
         # only ever slowed by other work): greedy's few seconds vary most
         cpu = {name: float("inf") for name in sessions}
