@@ -7,10 +7,17 @@ It builds a small mission with the component in its slot, runs it, and checks th
 the component is accepted by the kernel, policies return legal allocations, the observation
 keeps its tables and shapes, and a scenario's results do not depend on the batch it runs in
 (components must draw from ``sim.rng``/``ctx.rng`` streams, never from a shared generator).
-A decision-maker (policy, condition, reconstructor) must also pass the integrity check: run
-again with the world's unseen draws redrawn (the classification outcomes; the robot failures
-and task attribute changes), it must decide the same until what it observes differs. Each
-failure raises ``AssertionError`` with what broke.
+A decision-maker (policy, condition, reconstructor) must decide the same on the same
+observations (run twice, nothing redrawn) and pass the integrity check: for every stream of
+the world that I does not show, run again with that stream alone redrawn, it must decide the
+same until what it observes differs. Each run is made in a fresh process (forked where the
+platform can), under a seed and a salt drawn anew for each check, with the global generators
+(numpy's, random's, torch's) seeded at random in it. Each failure raises ``AssertionError``
+with what broke.
+
+It is a linter for honest mistakes, not a gate: code that means to peek can recognise the check,
+or read the world some way no check foresees. Ranking methods one does not trust is done apart,
+with ``ata eval --isolate`` (docs/evaluation.md).
 
 A policy fills the slots whose hooks it implements: with ``ata_initial_allocation`` the initial
 slot (else ``greedy`` does); with ``ata_reallocate`` the reallocation slot, called at every
@@ -23,6 +30,13 @@ method and fails the integrity check by design: `check_component` refuses it unl
 
 from __future__ import annotations
 
+import multiprocessing
+import os
+import pickle
+import random
+import secrets
+import sys
+import traceback
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -53,15 +67,20 @@ def _contributor(kind: str, name: str, factory: Callable[..., Any]) -> Any:
     return Contributor()
 
 
+CHECK_HUMANS = {"t0_max_h": 0.5}
+"""The built-in human model's settings in a decision-maker's check mission: no human has worked
+past the earliest onset of fatigue (0.5 h at the default spread) when the episode starts."""
+
+
 def _mission(kind: str, name: str, factory: Callable[..., Any], settings: dict | None,
-             mission_keys: dict | None) -> tuple[Mission, Any]:
+             mission_keys: dict | None, seed: int = 0) -> tuple[Mission, Any]:
     pm = get_plugin_manager(extra=[_contributor(kind, name, factory)], entry_points=False)
     registry = collect_components(pm)
     slot = SLOT_OF_KIND[kind]
     raw: dict[str, Any] = {"mission": {"setting": "custom", "humans": 3, "robots": 4,
                                        "tasks": 12, "scenarios": 6, "batch_size": 6,
                                        "horizon_s": 600.0, "uncertainty": "high",
-                                       **(mission_keys or {})},
+                                       "seed": seed, **(mission_keys or {})},
                            "components": {}}
     if slot in LIST_SLOT_BASE:
         raw["components"][slot] = LIST_SLOT_BASE[slot] + [name]
@@ -77,19 +96,13 @@ def _mission(kind: str, name: str, factory: Callable[..., Any], settings: dict |
         raw["components"]["condition"] = "always" if realloc else "never"
     else:
         raw["components"][slot] = name
+    if kind in DECISION_KINDS:
+        # every human starts before the earliest fatigue onset, so that S shows no fatigue at
+        # first and a decision that follows the hidden curves is caught before it shows
+        raw["human"] = dict(CHECK_HUMANS)
     if settings:
         raw[name] = settings
-    return validate(raw, registry, source=f"<check {kind} {name}>"), registry
-
-
-UNSEEN_STREAMS = ("tasks.outcome", "robot_failure.", "attribute_change.")
-"""The built-in world's draws that S does not show until they happen: the classification
-outcomes (never shown), the robot failures and the task attribute changes (shown once they
-happen). The integrity check redraws them."""
-INTEGRITY_RUNS = (UNSEEN_STREAMS[:1], UNSEEN_STREAMS)
-"""The two redrawn runs: the outcomes alone (S is the same throughout, so every decision is
-checked), then every unseen draw (decisions checked until S first differs)."""
-RESALT = 0x5EED
+    return validate(raw, registry, source="mission.toml"), registry
 
 
 @dataclass
@@ -98,6 +111,9 @@ class Trace:
     and what they decided, each an array with a leading scenario axis."""
 
     r_perf: np.ndarray
+    inherent: dict[str, np.ndarray] = field(default_factory=dict)
+    drawn: tuple[str, ...] = ()
+    shown_in_inherent: bool = False     # a redrawn stream changed I: nothing to compare
     observations: list[dict[str, np.ndarray]] = field(default_factory=list)
     seen: list[dict[str, np.ndarray]] = field(default_factory=list)
     decided: list[dict[str, np.ndarray]] = field(default_factory=list)
@@ -125,28 +141,107 @@ def _decided(ctx: DecisionContext, allocation: Allocation | None, active: np.nda
         out["initial allocation"] = allocation.stack()
         return out
     out["condition"] = active.copy()
-    if allocation is not None:
-        out["reallocation"] = np.where(active[:, None, None], allocation.stack(),
-                                       np.iinfo(np.int64).min)
+    # a scenario's entry does not depend on whether another scenario reallocated
+    none = np.iinfo(np.int64).min
+    proposed = allocation.stack() if allocation is not None else \
+        np.full(ctx.previous.stack().shape, none)
+    out["reallocation"] = np.where(active[:, None, None], proposed, none)
     return out
 
 
-def _run(mission: Mission, registry: Any, ids: list[int],
-         redraw: tuple[str, ...] = ()) -> Trace:
+def _inherent(inherent: Any) -> dict[str, np.ndarray]:
+    out = {f"I.{g}": np.asarray(t.features) for g, t in inherent.items()}
+    out.update({f"I.extras.{k}": np.asarray(v) for k, v in inherent.extras.items()})
+    return out
+
+
+def _run(mission: Mission, registry: Any, ids: list[int], redraw: tuple[str, ...] = (),
+         salt: int = 0, base: "Trace | None" = None) -> Trace:
+    """One run of the check mission. With `redraw`, those world streams draw other numbers
+    (under `salt`), and the run stops as soon as what every scenario observes differs from
+    `base` (or at once, marked, when I differs): no decision after that is compared."""
     sim = Simulation(mission, registry, ids)
-    if redraw:
-        sim.sim.rng = sim.sim.rng.resalted(redraw, RESALT)
-    sim.reset()
+    world = sim.sim.rng.resalted(redraw, salt) if redraw else sim.sim.rng
+    world.drawn = set()
+    sim.sim.rng = world
     trace = Trace(r_perf=np.zeros(0))
-    for _ in range(sim.sim.clock.n_epochs):
+    trace.inherent = _inherent(sim.reset())
+    if base is not None and any(_difference(base.inherent, trace.inherent, s) is not None
+                                for s in range(len(ids))):
+        trace.shown_in_inherent = True
+        return trace
+    diverged = np.zeros(len(ids), dtype=bool)
+    for k in range(sim.sim.clock.n_epochs):
         ctx = sim.begin_epoch()
         trace.seen.append(_seen(ctx))
         trace.observations.append({g: t.features.copy() for g, t in ctx.observed.items()})
         allocation, active = sim.decide(ctx)
         sim.end_epoch(allocation, active)          # the kernel checks the contract first
         trace.decided.append(_decided(ctx, allocation, active))
-    trace.r_perf = sim.end_episode().r_perf.copy()
+        if base is not None:
+            diverged |= [_difference(base.seen[k], trace.seen[k], s) is not None
+                         for s in range(len(ids))]
+            if diverged.all():
+                break
+    if sim.sim.epoch == sim.sim.clock.n_epochs:
+        trace.r_perf = sim.end_episode().r_perf.copy()
+    trace.drawn = tuple(sorted(world.drawn))
     return trace
+
+
+def _fresh_child(job: Callable[[], Any], conn: Any) -> None:
+    """In a forked child: seed the global generators at random (a method that uses them is
+    told apart from one that peeks), run the job, send back its result or its exception."""
+    try:
+        seed = int.from_bytes(os.urandom(4), "little")
+        np.random.seed(seed)
+        random.seed(seed)
+        torch = sys.modules.get("torch")
+        if torch is not None:
+            torch.set_num_threads(1)   # OpenMP's pool does not survive a fork
+            torch.manual_seed(seed)
+        out: Any = ("ok", job())
+    except BaseException as exc:       # noqa: BLE001 - everything goes back to the parent
+        out = ("error", exc, traceback.format_exc())
+    try:
+        conn.send(out)
+    except Exception:                  # an exception that does not pickle: its text
+        conn.send(("error", RuntimeError(out[2] if out[0] == "error" else "unpicklable result"),
+                   out[2] if out[0] == "error" else ""))
+    finally:
+        conn.close()
+
+
+def _in_fresh_processes(jobs: list[Callable[[], Any]], workers: int = 2) -> list[Any]:
+    """Run each job in a process of its own, forked from this one before any job ran, so that
+    no job sees what another left behind (a cache, a first read); `workers` at a time. Where
+    the platform cannot fork, the jobs run here, one after another."""
+    if "fork" not in multiprocessing.get_all_start_methods():
+        return [job() for job in jobs]
+    context = multiprocessing.get_context("fork")
+    results: list[Any] = [None] * len(jobs)
+    running: list[tuple[int, Any, Any]] = []
+    pending = list(enumerate(jobs))
+    while pending or running:
+        while pending and len(running) < workers:
+            i, job = pending.pop(0)
+            receive, send = context.Pipe(duplex=False)
+            process = context.Process(target=_fresh_child, args=(job, send), daemon=True)
+            process.start()
+            send.close()
+            running.append((i, process, receive))
+        i, process, receive = running.pop(0)
+        try:
+            out = receive.recv()
+        except EOFError:
+            process.join()
+            raise RuntimeError(f"a check run died without an answer (exit code "
+                               f"{process.exitcode})") from None
+        process.join()
+        if out[0] == "error":
+            raise out[1]
+        results[i] = out[1]
+    return results
 
 
 def _difference(a: dict[str, np.ndarray], b: dict[str, np.ndarray], s: int
@@ -176,42 +271,75 @@ def _value(record: dict[str, np.ndarray], name: str, s: int, index: tuple) -> st
     return str(row[index] if index else row)
 
 
+def _first_change(base: Trace, other: Trace, ids: list[int]) -> tuple | None:
+    """The first decision (epoch, scenario, what, index) that differs between two runs while
+    what the decision-makers observed had not yet differed; None when there is none."""
+    found = []
+    for s in range(len(ids)):
+        for k in range(min(len(base.seen), len(other.seen))):
+            if _difference(base.seen[k], other.seen[k], s) is not None:
+                break                           # from here on it may decide otherwise
+            diff = _difference(base.decided[k], other.decided[k], s)
+            if diff is not None:
+                found.append((k, s, *diff))
+                break
+    return min(found, key=lambda f: (f[0], f[1])) if found else None
+
+
+def _where(what: str, index: tuple) -> str:
+    return f" for POI {index[0]}" if what.endswith("allocation") and index else \
+        (f" at row {index[0]}" if index else "")
+
+
+def _nondeterminism(kind: str, name: str, base: Trace, again: Trace, ids: list[int]) -> None:
+    """Raise AssertionError when two runs with nothing redrawn decide differently on the same
+    observations: the component draws from something that is not ctx.rng."""
+    change = _first_change(base, again, ids)
+    if change is None:
+        return
+    k, s, what, index = change
+    raise AssertionError(
+        f"{kind} {name!r} is not deterministic: run twice on the same scenarios, with nothing "
+        f"redrawn, in scenario {ids[s]} at epoch {k} its {what}{_where(what, index)} was "
+        f"{_value(base.decided[k], what, s, index)} in one run and "
+        f"{_value(again.decided[k], what, s, index)} in the other, on the same observations. "
+        "It draws from a generator other than ctx.rng (numpy's global np.random, the random "
+        "module, torch's global generator) or from the clock: draw every random number from "
+        "ctx.rng streams (docs/plugins.md, 'Random numbers')")
+
+
 def _integrity(kind: str, name: str, base: Trace, mission: Mission, registry: Any,
-               ids: list[int]) -> None:
-    """Run again with the unseen world draws redrawn; raise AssertionError at the first
-    decision that changed while what the decision-makers observed had not."""
-    T = len(base.seen)
-    for streams in INTEGRITY_RUNS:
-        other = _run(mission, registry, ids, redraw=streams)
-        found = []                              # (epoch, scenario, what, index)
-        for s in range(len(ids)):
-            for k in range(T):
-                if _difference(base.seen[k], other.seen[k], s) is not None:
-                    break                       # from here on it may decide otherwise
-                diff = _difference(base.decided[k], other.decided[k], s)
-                if diff is not None:
-                    found.append((k, s, *diff))
-                    break
-        if not found:
+               ids: list[int], salt: int) -> None:
+    """For each world stream the base run drew, run again with it alone redrawn (in fresh
+    processes); raise AssertionError at the first decision that changed while what the
+    decision-makers observed had not. A stream I shows is skipped: I differs from the start."""
+    streams = list(base.drawn)
+    others = _in_fresh_processes([
+        (lambda st=st: _run(mission, registry, ids, redraw=(st,), salt=salt, base=base))
+        for st in streams])
+    for stream, other in zip(streams, others):
+        if other.shown_in_inherent:
             continue
-        k, s, what, index = min(found, key=lambda f: (f[0], f[1]))
-        seen_until = next((j for j in range(T)
+        change = _first_change(base, other, ids)
+        if change is None:
+            continue
+        k, s, what, index = change
+        seen_until = next((j for j in range(min(len(base.seen), len(other.seen)))
                            if _difference(base.seen[j], other.seen[j], s) is not None), None)
-        poi = f" for POI {index[0]}" if what.endswith("allocation") and index else \
-            (f" at row {index[0]}" if index else "")
         until = "throughout" if seen_until is None else f"before epoch {seen_until}"
         raise AssertionError(
             f"{kind} {name!r} decides from what it cannot observe: in scenario {ids[s]}, at "
-            f"epoch {k}, its {what}{poi} was {_value(base.decided[k], what, s, index)} as the "
-            f"world drew it and {_value(other.decided[k], what, s, index)} with the unseen "
-            f"draws ({', '.join(streams)}) drawn again; what it observed was the same in both "
-            f"runs {until}. A decision-maker decides from I, the observed S, the allocation "
-            "in force, its settings and ctx.rng alone (docs/plugins.md, 'Submitting a method')")
+            f"epoch {k}, its {what}{_where(what, index)} was "
+            f"{_value(base.decided[k], what, s, index)} as the world drew it and "
+            f"{_value(other.decided[k], what, s, index)} with the unseen draws ({stream}) "
+            f"drawn again; what it observed was the same in both runs {until}. A "
+            "decision-maker decides from I, the observed S, the allocation in force, its "
+            "settings and ctx.rng alone (docs/plugins.md, 'Submitting a method')")
 
 
 def check_component(kind: str, factory: Callable[..., Any], *, name: str = "under_test",
                     settings: dict | None = None, mission: dict | None = None,
-                    reference: bool = False) -> None:
+                    reference: bool = False, seed: int | None = None) -> None:
     """Run the contract checks on one component factory; raise AssertionError on a breach.
 
     :param kind: one of ``ata.core.registry.KINDS``.
@@ -220,6 +348,8 @@ def check_component(kind: str, factory: Callable[..., Any], *, name: str = "unde
     :param reference: the factory is a reference reconstructor (``reference = True``, it reads
         the true state): say so to run every check but the integrity check, which a reference
         fails by design. Without it, a reference is refused.
+    :param seed: the check mission's root seed; None (the default) draws one, and a salt, at
+        random for each check. A failure's message names the seed it ran under.
     """
     if is_reference(factory) != reference:
         raise AssertionError(
@@ -228,16 +358,29 @@ def check_component(kind: str, factory: Callable[..., Any], *, name: str = "unde
             "check_component(..., reference=True)" if reference is False else
             f"{kind} {name!r} is not a reference (its class does not declare reference = "
             "True): check it as a method, without reference=True")
-    m, registry = _mission(kind, name, factory, settings, mission)
+    seed = secrets.randbelow(2**31) if seed is None else int(seed)
+    salt = 1 + secrets.randbelow(2**62)
+    m, registry = _mission(kind, name, factory, settings, mission, seed)
     ids = list(range(m.settings.scenarios))
     try:
-        base = _run(m, registry, ids)
-        again = _run(m, registry, ids)
-        alone = _run(m, registry, ids[-1:])
-        if kind in DECISION_KINDS and not reference:
-            _integrity(kind, name, base, m, registry, ids)
-    except ContractError as exc:   # the kernel's contract checks
-        raise AssertionError(f"{kind} {name!r} broke the kernel's contract: {exc}") from exc
+        try:
+            base, again, alone = _in_fresh_processes([
+                lambda: _run(m, registry, ids), lambda: _run(m, registry, ids),
+                lambda: _run(m, registry, ids[-1:])])
+            if kind in DECISION_KINDS:
+                _nondeterminism(kind, name, base, again, ids)
+            if kind in DECISION_KINDS and not reference:
+                _integrity(kind, name, base, m, registry, ids, salt)
+        except ContractError as exc:   # the kernel's contract checks
+            raise AssertionError(f"{kind} {name!r} broke the kernel's contract: {exc}") from exc
+        _same_runs(base, again, alone, ids)
+    except AssertionError as exc:
+        raise AssertionError(f"{exc} [check_component(..., seed={seed})]") from exc.__cause__
+
+
+def _same_runs(base: Trace, again: Trace, alone: Trace, ids: list[int]) -> None:
+    """The world's side of determinism: finite rewards, whole tables, the same numbers twice,
+    and a scenario's numbers whatever its batch."""
     r_perf, observations = base.r_perf, base.observations
     assert np.isfinite(r_perf).all(), "r_perf has non-finite values"
     for k, obs in enumerate(observations):

@@ -396,7 +396,7 @@ def test_agents_that_keep_give_the_episodes_of_ata_run_without_reallocation(miss
 
 def test_a_forbidden_agent_action_is_taken_as_keep(session):
     env = ata.gym.parallel_env(session)
-    obs, _ = env.reset(seed=4)
+    obs, _ = env.reset(seed=1)
     # a navigation take (action K+1 = 5) by a human who may classify its first candidate but may
     # not navigate (not highly skilled): without the mask the kernel would accept it
     forbidden = [(agent, 5) for agent, o in obs.items()

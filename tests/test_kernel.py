@@ -442,7 +442,7 @@ def test_a_change_a_stale_row_showed_possible_is_refused_counted_and_traced():
     sim.step_epoch()
     ctx = sim.begin_epoch()
     np.testing.assert_array_equal(ctx.reallocatable, [[False, False, True]])
-    ctx.reallocatable[:] = True
+    sim.shown = np.ones_like(ctx.reallocatable)       # what a stale S would show
     sim.end_epoch(*sim.decide(ctx))
     np.testing.assert_array_equal(sim.sim.record.allocations[0, 1],
                                   [[0, -1, -1], [0, -1, -1], [0, 0, 0]])

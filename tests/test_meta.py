@@ -39,8 +39,8 @@ def test_the_hooks_are_the_documented_set():
     assert HOOKS == sorted([
         "ata_register_components", "ata_setup", "ata_inherent", "ata_observe", "ata_inject",
         "ata_reconstruct", "ata_reconstruct_reference", "ata_initial_allocation", "ata_should_reallocate", "ata_reallocate",
-        "ata_allocation_changed", "ata_trained_on", "ata_advance",
-        "ata_epoch_end", "ata_episode_end"])
+        "ata_allocation_changed", "ata_trained_on", "ata_peak_bytes", "ata_advance",
+        "ata_epoch_end", "ata_episode_end", "ata_episode_scored"])
 
 
 @pytest.mark.parametrize("name", HOOKS)
@@ -137,8 +137,8 @@ class Deciders(Counter):
     that hands it the world, so it is no Spy)."""
 
     @hookimpl
-    def ata_episode_end(self, sim):
-        self._count("ata_episode_end")
+    def ata_episode_scored(self, episode):
+        self._count("ata_episode_scored")
 
     @hookimpl
     def ata_initial_allocation(self, ctx):
@@ -186,11 +186,13 @@ def test_the_kernel_calls_every_phase_hook_as_often_as_it_says():
                          "ata_episode_end": 1, "ata_allocation_changed": 1}
     assert reference.calls == {"ata_reconstruct_reference": T}
     assert deciders.calls["ata_initial_allocation"] == 1
+    assert deciders.calls["ata_episode_scored"] == 1
     assert deciders.calls["ata_should_reallocate"] == T - 1      # every epoch after the first
     assert deciders.calls["ata_reallocate"] == len(range(2, T, 2))   # when it said yes
-    # the start-up hook and ata_trained_on (asked by `ata eval`) are tested where they are used
+    # the start-up hook, ata_trained_on (asked by `ata eval`) and ata_peak_bytes (by the memory
+    # check, tests/test_faults_memory.py) are tested where they are used
     assert set(spy.calls) | set(deciders.calls) | set(reference.calls) == set(HOOKS) - {
-        "ata_register_components", "ata_trained_on"}
+        "ata_register_components", "ata_trained_on", "ata_peak_bytes"}
 
 
 def test_no_python_file_of_the_project_is_over_500_lines():

@@ -83,9 +83,9 @@ def test_decision_keys_depend_on_seed_and_scenario_and_batches_alone():
                                   u[[7, 2]])
     np.testing.assert_array_equal(full.subset(np.array([4])).uniform("a", 0, (5,)), u[[4]])
     assert not np.array_equal(decision_rng(SEED + 1, ids).uniform("a", 0, (5,)), u)
-    assert len(set(full.keys.tolist())) == 30
+    assert len({tuple(k) for k in full.keys.tolist()}) == 30
     world = BatchRNG(SEED, ids)
-    assert not set(full.keys.tolist()) & set(world.keys.tolist())
+    assert not {tuple(k) for k in full.keys.tolist()} & {tuple(k) for k in world.keys.tolist()}
 
 
 # --- nothing reachable holds the seed ----------------------------------------------------------

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from ata.experiment.runner import BASELINE_MISSION
-from ata.core.rng import BatchRNG, scenario_keys, stream_id
+from ata.core.rng import BatchRNG, stream_word, threefry2x64, world_keys
 from ata.experiment.runner import load_session, run_mission
 
 SEED = 12345
@@ -54,8 +54,24 @@ def test_draws_differ_across_scenarios_streams_counters_and_seeds():
     np.testing.assert_array_equal(u, BatchRNG(SEED, np.arange(50)).uniform("a", 0, (10,)))
     # a shape's first elements do not depend on its size
     np.testing.assert_array_equal(rng.uniform("a", 0, (3,)), u[:, :3])
-    assert stream_id("fatigue_noise") == stream_id("fatigue_noise") != stream_id("latency.tasks")
-    assert len(set(scenario_keys(SEED, np.arange(1000)).tolist())) == 1000
+    assert stream_word("fatigue_noise") == stream_word("fatigue_noise") != stream_word("latency.tasks")
+    keys = world_keys(SEED, np.arange(1000))
+    assert keys.shape == (1000, 2) and len({tuple(k) for k in keys.tolist()}) == 1000
+
+
+# Random123's known-answer vectors for Threefry-2x64-20 (tests/kat_vectors):
+# counter (c0, c1), key (k0, k1) -> (out0, out1)
+KAT = [((0, 0), (0, 0), (0xC2B6E3A8C2C69865, 0x6F81ED42F350084D)),
+       ((2**64 - 1, 2**64 - 1), (2**64 - 1, 2**64 - 1), (0xE02CB7C4D95D277A, 0xD06633D0893B8B68)),
+       ((0x243F6A8885A308D3, 0x13198A2E03707344), (0xA4093822299F31D0, 0x082EFA98EC4E6C89),
+        (0x263C7D30BB0F0AF1, 0x56BE8361D3311526))]
+
+
+@pytest.mark.parametrize("counter,key,expected", KAT)
+def test_threefry_matches_random123s_known_answers(counter, key, expected):
+    u = lambda x: np.array([x], dtype=np.uint64)   # noqa: E731
+    x0, x1 = threefry2x64(u(key[0]), u(key[1]), u(counter[0]), u(counter[1]))
+    assert (int(x0[0]), int(x1[0])) == expected
 
 
 def test_resalted_streams_draw_again_and_the_others_do_not():

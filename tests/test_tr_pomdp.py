@@ -40,6 +40,8 @@ def context(setting="a", epochs=3, ids=(0, 1, 2)):
 
 
 def _set(table, row_of_entity, column, value):
+    # the context's tables are read-only: a writable copy in their place
+    table.features = np.array(table.features)
     table.features[:, row_of_entity, table.index(column)] = value
 
 

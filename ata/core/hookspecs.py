@@ -14,8 +14,10 @@ Two kinds of plugin take part:
 The decision hooks (``ata_initial_allocation``, ``ata_should_reallocate``, ``ata_reallocate``)
 are called only on the one component chosen for their slot. A decision-maker (a component in a
 decision slot: reconstructors, initial, condition, reallocation) sees the scenario through its
-``DecisionContext`` (a reconstructor through a ``DecisionView``) and may implement no hook
-that hands it the world (``sim``) before ``ata_episode_end``: the kernel refuses it. The order in which a robot visits
+``DecisionContext`` (a reconstructor through a ``DecisionView``), whose arrays are read-only
+copies, and may implement no hook that hands it the world (``sim``), ``ata_episode_end``
+included: the kernel refuses it. At the end of an episode it learns its record and score through
+``ata_episode_scored``. The order in which a robot visits
 its POIs is not a hook: it is a setting of the robot model (``[robot] routing``).
 """
 
@@ -27,7 +29,9 @@ import numpy as np
 import pluggy
 
 if TYPE_CHECKING:
-    from ata.core.state import Allocation, DecisionContext, DecisionView, Observation, SimState
+    from ata.core.mission import Mission
+    from ata.core.state import (Allocation, DecisionContext, DecisionView, EpisodeOutcome,
+                                Observation, SimState)
 
 hookspec = pluggy.HookspecMarker("ata")
 
@@ -45,6 +49,19 @@ def ata_register_components(register: "Callable[[str, str, Any], None]") -> None
 
 
 # --- setup: once per batch, before t = 0 -------------------------------------------------------
+
+@hookspec
+def ata_peak_bytes(mission: "Mission", batch: int) -> int:
+    """The memory, in bytes, the component adds at its peak while `batch` scenarios of
+    `mission` run together (its own arrays, networks' activations, solver models).
+
+    Asked before any work starts, of the components built once on one scenario
+    (``ata.runtime.memory``): a run cuts its batches smaller, or refuses the mission, naming
+    the figure and the limit. A component that does not implement it is counted at the
+    default: the kernel's episode record, and for a policy the planner's working arrays
+    (``ata.model.greedy_planner.peak_bytes``), are counted for every mission anyway.
+    """
+
 
 @hookspec
 def ata_setup(sim: "SimState") -> None:
@@ -170,3 +187,17 @@ def ata_epoch_end(sim: "SimState", epoch: int) -> None:
 @hookspec
 def ata_episode_end(sim: "SimState") -> None:
     """Write per-scenario results: ``sim.record.upper_bound`` and ``sim.record.metrics``."""
+
+
+@hookspec
+def ata_episode_scored(episode: "EpisodeOutcome") -> None:
+    """After ``ata_episode_end``: the episode's record and score, without the world.
+
+    The end-of-episode hook a decision-maker may implement (it may not implement
+    ``ata_episode_end``, which hands over the world, whose generator and mission would tell it
+    the next scenarios' draws).
+
+    :param episode: the rewards, reallocations and allocations of the episode (read-only); add
+        per-scenario results to ``episode.metrics`` ((B,) arrays, new names only) and summary
+        lines to ``episode.warnings``.
+    """

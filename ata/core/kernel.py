@@ -19,17 +19,17 @@ from ata.core.errors import ContractError, MissionError
 from ata.core.mission import SLOT_HOOKS, SLOT_KINDS, Mission
 from ata.core.registry import Register
 from ata.core.rng import BatchRNG, decision_rng
-from ata.core.state import (Allocation, DecisionContext, DecisionView, EpisodeRecord, Observation,
-                            SimState)
+from ata.core.state import (Allocation, DecisionContext, DecisionView, EpisodeOutcome,
+                            EpisodeRecord, Observation, SimState, read_only)
 
 DECISION_KINDS = frozenset({"policy", "condition", "reconstructor"})
 """The decision-makers' kinds: built from the mission without its seed (`Mission.public`),
 they see the world through their DecisionContext (a reconstructor through a DecisionView)."""
 DECISION_SLOTS = ("reconstructors", "initial", "condition", "reallocation")
 WORLD_HOOKS = ("ata_setup", "ata_inherent", "ata_observe", "ata_inject",
-               "ata_allocation_changed", "ata_advance", "ata_epoch_end")
-"""The phase hooks that receive the world (``sim``) before the episode ends: a
-decision-maker may implement none of them."""
+               "ata_allocation_changed", "ata_advance", "ata_epoch_end", "ata_episode_end")
+"""The phase hooks that receive the world (``sim``): a decision-maker may implement none of
+them (at the end of an episode it has ``ata_episode_scored``)."""
 REFERENCE_HOOK = "ata_reconstruct_reference"
 """The hook that hands a reconstructor the true state: only a declared reference may have it."""
 REFERENCE_COLUMN = "reference"
@@ -132,6 +132,7 @@ class Simulation:
         """The true S of the epoch begun last: never in a policy's context; a teacher that
         needs it (supervised training of reconstructors) reads it from the Simulation."""
         self._pending: DecisionContext | None = None   # the context of an epoch begun, not ended
+        self.shown: np.ndarray | None = None
 
     def _refuse_world_hooks(self, ordered: list[tuple[str, Any]]) -> None:
         """Raise a ContractError when a component in a decision slot implements a hook that
@@ -143,11 +144,13 @@ class Simulation:
                 if any(p is component for p in impls):
                     slot = name.split(":", 1)[0]
                     comp = getattr(component, "component_name", None) or type(component).__name__
+                    instead = (" (it learns its episode's record and score through "
+                               "ata_episode_scored)") if hook_name == "ata_episode_end" else ""
                     raise ContractError(
                         f"{slot} component {comp!r} implements {hook_name}, which "
                         "hands it the world's state and generator: a decision-maker sees the "
                         "scenario through its DecisionContext alone (a reconstructor through "
-                        "ata_reconstruct; see docs/plugins.md)")
+                        f"ata_reconstruct; see docs/plugins.md){instead}")
 
     def _references(self, ordered: list[tuple[str, Any]]) -> list[str]:
         """The reference reconstructors of the mission; a ContractError when a component that
@@ -185,14 +188,19 @@ class Simulation:
         return obs.reallocatable
 
     def _context(self, observed: Observation, recon: dict[str, np.ndarray]) -> DecisionContext:
+        """The decision context of this epoch: every array in it a read-only copy, so that
+        no edit in place reaches the allocation the kernel applies, the world, or what another
+        decision-maker reads."""
         sim = self.sim
         # as observed: an injector may make it stale
-        realloc = self._reallocatable(observed)
+        realloc = read_only(self._reallocatable(observed))
         return DecisionContext(epoch=sim.epoch, time=sim.now, sizes=sim.sizes, clock=sim.clock,
-                               inherent=self.inherent, observed=observed, reconstructed=recon,
-                               previous=sim.allocation, reallocatable=realloc,
-                               rng=self.decision_rng, settings=self.decision_settings,
-                               channel=sim.channel)
+                               inherent=self.inherent, observed=observed,
+                               reconstructed={k: read_only(v) for k, v in recon.items()},
+                               previous=None if sim.allocation is None
+                               else sim.allocation.frozen(),
+                               reallocatable=realloc, rng=self.decision_rng,
+                               settings=self.decision_settings, channel=sim.channel)
 
     def _check(self, alloc: Any, slot: str) -> Allocation:
         sim = self.sim
@@ -213,9 +221,10 @@ class Simulation:
             if arr.size and (arr.min() < low or arr.max() >= high):
                 raise ContractError(f"{where}: {field} values must lie in [{low}, {high}); "
                                     f"got {arr.min()}..{arr.max()}")
-        return Allocation(np.asarray(alloc.robot, dtype=np.int64),
-                          np.asarray(alloc.navigator, dtype=np.int64),
-                          np.asarray(alloc.classifier, dtype=np.int64))
+        # copies: a policy that keeps the arrays it returned cannot change what is in force
+        return Allocation(np.array(alloc.robot, dtype=np.int64),
+                          np.array(alloc.navigator, dtype=np.int64),
+                          np.array(alloc.classifier, dtype=np.int64))
 
     def step_epoch(self) -> None:
         """Run one decision epoch: observe, inject, reconstruct, decide, then its ticks.
@@ -239,6 +248,8 @@ class Simulation:
         hook.ata_observe(sim=sim, obs=truth)
         observed = truth.observable()             # the hidden values never reach S
         hook.ata_inject(sim=sim, obs=observed)
+        # the decision-makers' copy, read-only: the injectors may keep the arrays they wrote
+        observed = observed.frozen()
         recon: dict[str, np.ndarray] = {}
         view = DecisionView(sim, self.decision_rng)
         hook.ata_reconstruct(sim=view, obs=observed, inherent=self.inherent, out=recon)
@@ -247,6 +258,9 @@ class Simulation:
             getattr(hook, REFERENCE_HOOK)(sim=view, truth=truth.copy(), obs=observed,
                                           inherent=self.inherent, out=recon)
         ctx = self._context(observed, recon)
+        self.shown = ctx.reallocatable
+        """What S showed reallocatable at the epoch begun (the kernel's own reference: a
+        decision-maker that rebinds ``ctx.reallocatable`` changes nothing here)."""
         self.last_context = self._pending = ctx
         self.last_truth = truth
         return ctx
@@ -298,7 +312,7 @@ class Simulation:
                 # what the policy saw as reallocatable and what truly is: a stale observation
                 # may show a captured POI, or one a robot is on its way to, as open. Its triple
                 # stays, and a change proposed there counts as refused.
-                shown = active[:, None] & ctx.reallocatable
+                shown = active[:, None] & self.shown
                 truly = self._reallocatable(self.last_truth)
                 refused = shown & ~truly & ((proposed.robot != previous.robot)
                                             | (proposed.navigator != previous.navigator)
@@ -329,8 +343,9 @@ class Simulation:
         """Sample the batch and collect the inherent information I."""
         hook = self.pm.hook
         hook.ata_setup(sim=self.sim)
-        self.inherent = Observation()
-        hook.ata_inherent(sim=self.sim, inherent=self.inherent)
+        inherent = Observation()
+        hook.ata_inherent(sim=self.sim, inherent=inherent)
+        self.inherent = inherent.frozen()         # I as every decision-maker sees it
         return self.inherent
 
     def run(self, on_epoch: Callable[[int], None] | None = None) -> EpisodeRecord:
@@ -349,4 +364,23 @@ class Simulation:
         if self.references:
             record.metrics[REFERENCE_COLUMN] = np.ones(self.sim.batch_size)
         self.pm.hook.ata_episode_end(sim=self.sim)
+        self._episode_scored(record)
         return record
+
+    def _episode_scored(self, record: EpisodeRecord) -> None:
+        """Tell the components the episode's record without the world (`ata_episode_scored`);
+        add the per-scenario results they give to the record's."""
+        outcome = EpisodeOutcome(r_perf=read_only(record.r_perf),
+                                 reallocated=read_only(record.reallocated),
+                                 allocations=read_only(record.allocations))
+        self.pm.hook.ata_episode_scored(episode=outcome)
+        for name, values in outcome.metrics.items():
+            values = np.asarray(values, dtype=float)
+            if name in record.metrics:
+                raise ContractError(f"results column {name!r} is written twice: a component "
+                                    "adds it in ata_episode_scored, another wrote it before")
+            if values.shape != (self.sim.batch_size,):
+                raise ContractError(f"results column {name!r} has shape {values.shape}, "
+                                    f"expected ({self.sim.batch_size},)")
+            record.metrics[name] = values
+        record.warnings.extend(outcome.warnings)

@@ -8,12 +8,13 @@ them; policies read them by column name.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Mapping, TypeVar
+from typing import Any, Iterable, Mapping
 
 import numpy as np
 
 from ata.core.errors import ContractError
 from ata.core.queues import Queue
+from ata.core.channel import Channel, T, check_published, read_only  # noqa: F401 (public here)
 from ata.core.rng import BatchRNG, StreamRNG
 
 
@@ -81,6 +82,11 @@ class EntityTable:
     def copy(self) -> "EntityTable":
         return EntityTable(self.names, self.features.copy(), self.mask.copy(),
                            None if self.holds is None else self.holds.copy())
+
+    def frozen(self) -> "EntityTable":
+        """A copy whose arrays are read-only (`read_only`)."""
+        return EntityTable(self.names, read_only(self.features), read_only(self.mask),
+                           None if self.holds is None else read_only(self.holds))
 
     def take(self, rows: np.ndarray) -> "EntityTable":
         """The table of a sub-batch of scenarios."""
@@ -165,6 +171,14 @@ class Observation(dict):
                           None if self.allowed is None else self.allowed.copy(),
                           {k: v.copy() for k, v in self.hidden.items()})
 
+    def frozen(self) -> "Observation":
+        """A copy without the hidden values whose arrays are read-only: what a decision-maker
+        receives, so that an edit in place changes neither the world nor what the kernel or
+        another decision-maker reads."""
+        return self._with({k: v.frozen() for k, v in self.items()},
+                          {k: read_only(v) for k, v in self.extras.items()},
+                          None if self.allowed is None else read_only(self.allowed), {})
+
     def observable(self) -> "Observation":
         """A deep copy without the hidden values: what an observation may show of it."""
         out = self.copy()
@@ -198,6 +212,12 @@ class Allocation:
 
     def copy(self) -> "Allocation":
         return Allocation(self.robot.copy(), self.navigator.copy(), self.classifier.copy())
+
+    def frozen(self) -> "Allocation":
+        """A copy whose arrays are read-only (the allocation in force, as a decision-maker
+        receives it)."""
+        return Allocation(read_only(self.robot), read_only(self.navigator),
+                          read_only(self.classifier))
 
     def take(self, rows: np.ndarray) -> "Allocation":
         """The allocation of a sub-batch of scenarios."""
@@ -272,6 +292,30 @@ class EpisodeRecord:
         return self.r_perf.sum(axis=1)
 
 
+@dataclass
+class EpisodeOutcome:
+    """What a decision-maker learns of an episode once it is over (``ata_episode_scored``):
+    its record, read-only, and where to add per-scenario results. Never the world: the true
+    state, its generator and the mission stay the models'."""
+
+    r_perf: np.ndarray                  # (B, T) points gained in each epoch, read-only
+    reallocated: np.ndarray             # (B, T) bool, read-only
+    allocations: np.ndarray             # (B, T, P, 3) the allocation in force, read-only
+    metrics: dict[str, np.ndarray] = field(default_factory=dict)
+    """Per-scenario results to add, (B,) each: they become results.csv columns."""
+    warnings: list[str] = field(default_factory=list)
+    """Lines for the run's summary."""
+
+    @property
+    def batch_size(self) -> int:
+        return int(self.r_perf.shape[0])
+
+    @property
+    def total(self) -> np.ndarray:
+        """The score of each scenario: the sum of r_perf over the episode."""
+        return self.r_perf.sum(axis=1)
+
+
 class ReadOnlyState:
     """Another model's state as a model may see it: every array a read-only view.
 
@@ -301,42 +345,6 @@ class ReadOnlyState:
 
     def __repr__(self) -> str:
         return f"ReadOnlyState({self._name!r}, {type(self._state).__name__})"
-
-
-T = TypeVar("T")
-
-
-class Channel:
-    """Typed values that components publish for each other, one per type: a team model's
-    constants that policies assume, say. The kernel knows none of the types; a type names who
-    publishes it in a class attribute ``published_by`` (used in the error when it is missing).
-    """
-
-    def __init__(self) -> None:
-        self._values: dict[type, Any] = {}
-
-    def publish(self, value: Any) -> None:
-        """Publish `value` under its type; a second value of one type raises ``ValueError``."""
-        kind = type(value)
-        if kind in self._values:
-            raise ValueError(f"{kind.__name__} is published already: one value per type")
-        self._values[kind] = value
-
-    def get(self, kind: type[T]) -> T:
-        """The value published as `kind` (or the one published as a subclass of it); a
-        ``ContractError`` naming the type and its publisher when there is none."""
-        if kind in self._values:
-            return self._values[kind]
-        found = [v for v in self._values.values() if isinstance(v, kind)]
-        if len(found) == 1:
-            return found[0]
-        if found:
-            raise ContractError(f"{len(found)} published values are a {kind.__name__}: "
-                                "publish one")
-        who = getattr(kind, "published_by", "the component that provides it")
-        held = ", ".join(sorted(t.__name__ for t in self._values)) or "nothing"
-        raise ContractError(f"no {kind.__name__} was published: {who} publishes it "
-                            f"(sim.publish in ata_setup); published: {held}")
 
 
 class SimState:
@@ -416,7 +424,7 @@ class DecisionView:
     def __init__(self, sim: SimState, rng: StreamRNG):
         self.batch_size, self.sizes, self.clock = sim.batch_size, sim.sizes, sim.clock
         self.epoch, self.now = sim.epoch, sim.now
-        self.allocation = None if sim.allocation is None else sim.allocation.copy()
+        self.allocation = None if sim.allocation is None else sim.allocation.frozen()
         self.rng = rng
         self.channel = sim.channel
 

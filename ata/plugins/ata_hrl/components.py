@@ -111,6 +111,16 @@ class LearnedComponent:
     def ata_trained_on(self) -> list[tuple[int, int, int]]:
         return trained_ranges(self.settings.checkpoint) if self.from_checkpoint else []
 
+    @hookimpl
+    def ata_peak_bytes(self, mission: Any, batch: int) -> int:
+        # the encoder's self-attention over every member and POI: scores and their softmax,
+        # (batch, heads, tokens, tokens) float32 each, grow as the POIs squared; the
+        # embeddings and the decoder's (batch, POIs, members) scores come next
+        s, cfg = mission.sizes, self.net.cfg
+        tokens = s.tasks + s.humans + s.robots
+        return 4 * batch * (2 * cfg.heads * tokens * tokens + 8 * cfg.d_model * tokens
+                            + 4 * s.tasks * (s.humans + s.robots + 1))
+
     def train_with(self, net: ATAHRLNet, recorder: Recorder, sampler: D.Chooser) -> None:
         """Decide with a trainer's live network, sampling with its sampler, and record."""
         self.net, self.recorder, self.sampler = net, recorder, sampler
@@ -383,9 +393,9 @@ class AuxReconstructor:
                         out: dict[str, np.ndarray]) -> None:
         feats = state_features(obs)
         with torch.no_grad():
-            f_obs = torch.as_tensor(obs["humans"].col("fatigue"), dtype=torch.float32)
-            hours = torch.as_tensor(obs["humans"].col("working_time"), dtype=torch.float32)
-            cog = torch.as_tensor(inherent["humans"].col("cognitive"), dtype=torch.float32)
+            f_obs = torch.tensor(obs["humans"].col("fatigue"), dtype=torch.float32)
+            hours = torch.tensor(obs["humans"].col("working_time"), dtype=torch.float32)
+            cog = torch.tensor(inherent["humans"].col("cognitive"), dtype=torch.float32)
             if "fatigue" in self.settings.parts:
                 recon, _, _ = self.net.fatigue(f_obs, hours, cog)
                 out["aux_fatigue"] = recon.numpy().astype(np.float64)

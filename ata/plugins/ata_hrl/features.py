@@ -62,4 +62,5 @@ def seen_state(ctx: DecisionContext) -> dict[str, np.ndarray]:
 
 def to_tensors(feats: dict[str, np.ndarray], device: torch.device | None = None
                ) -> dict[str, torch.Tensor]:
-    return {k: torch.as_tensor(v, dtype=torch.float32, device=device) for k, v in feats.items()}
+    # torch.tensor copies: the context's arrays are read-only, which torch.as_tensor warns of
+    return {k: torch.tensor(v, dtype=torch.float32, device=device) for k, v in feats.items()}

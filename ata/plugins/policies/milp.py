@@ -22,13 +22,13 @@ import os
 import time
 import warnings
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from scipy.optimize import Bounds, LinearConstraint, milp
 
 from ata import hookimpl
-from ata.core.state import Allocation, DecisionContext, SimState
+from ata.core.state import Allocation, DecisionContext, EpisodeOutcome
 from ata.runtime.cache import cache_dir
 from ata.runtime.executors import ProcessExecutor
 from ata.model import tables
@@ -206,6 +206,21 @@ def load_cached(root: Path, key: str) -> Solution | None:
         return None
 
 
+def misfit(sol: Solution, d: ScenarioData) -> str | None:
+    """Why a cached solution cannot be the allocation of scenario `d` (None when it can be):
+    an entry changed on disk would otherwise reach the kernel as a contract breach."""
+    if sol.triples is None:
+        return None
+    t = sol.triples
+    P, R, H = d.kind.shape[0], d.rtype.shape[0], d.eta.shape[0]
+    if t.shape != (P, 3):
+        return f"holds an allocation of shape {t.shape}, not ({P}, 3)"
+    for col, (n, what) in enumerate(((R, "robot"), (H, "human"), (H, "human"))):
+        if t.size and not ((t[:, col] >= -1) & (t[:, col] < n)).all():
+            return f"names a {what} that is not one of the scenario's {n}"
+    return None
+
+
 def store_cached(root: Path, key: str, sol: Solution) -> None:
     """Write a solution atomically (several processes may fill one cache at once)."""
     path = _cache_path(root, key)
@@ -274,6 +289,15 @@ class MilpPolicy:
         self.solutions: list[Solution] = []
         self.fallback: np.ndarray | None = None
 
+    @hookimpl
+    def ata_peak_bytes(self, mission: Any, batch: int) -> int:
+        # one scenario's model at a time in each solver process, whatever the batch: its
+        # options (POI x robot type x navigator x classifier, navigators at most every human)
+        # in some twenty arrays of 8 bytes, and the dense (humans, options) time matrix
+        s = mission.sizes
+        options = s.tasks * 2 * (1 + s.humans) * (1 + s.humans)
+        return max(1, min(self.s.workers, batch)) * 8 * options * (20 + s.humans)
+
     def solve_all(self, data: list[ScenarioData]) -> list[Solution]:
         """Solve every scenario (taking cached solutions when a cache is set), in worker
         processes when asked; the order is the batch's."""
@@ -282,6 +306,12 @@ class MilpPolicy:
             return self._solve(data)
         keys = [cache_key(d, self.s) for d in data]
         found = [load_cached(root, k) for k in keys]
+        for i, sol in enumerate(found):
+            why = None if sol is None else misfit(sol, data[i])
+            if why is not None:      # solved again (and rewritten) rather than trusted
+                warnings.warn(f"milp: the cache entry {_cache_path(root, keys[i])} {why}; "
+                              "solved again", RuntimeWarning, stacklevel=2)
+                found[i] = None
         todo = [i for i, sol in enumerate(found) if sol is None]
         for i, sol in zip(todo, self._solve([data[i] for i in todo])):
             found[i] = sol
@@ -324,10 +354,10 @@ class MilpPolicy:
         return alloc
 
     @hookimpl
-    def ata_episode_end(self, sim: SimState) -> None:
+    def ata_episode_scored(self, episode: EpisodeOutcome) -> None:
         if not self.solutions:
             return
-        m = sim.record.metrics
+        m = episode.metrics
         m["milp_status"] = np.array([sol.status for sol in self.solutions], dtype=float)
         m["milp_objective"] = np.array([sol.objective for sol in self.solutions])
         m["milp_bound"] = np.array([sol.bound for sol in self.solutions])
@@ -336,7 +366,7 @@ class MilpPolicy:
         m["milp_fallback"] = self.fallback.astype(float)
         m["milp_margin_scale"] = np.array([sol.margin_scale for sol in self.solutions])
         if self.fallback.any():
-            sim.record.warnings.append(f"milp: {int(self.fallback.sum())} scenario(s) fell back "
+            episode.warnings.append(f"milp: {int(self.fallback.sum())} scenario(s) fell back "
                                        "to the greedy allocation (see milp_status)")
 
 
