@@ -11,14 +11,13 @@ from typing import Callable, List, Optional
 
 import typer
 import typer.core
-from rich.markup import escape
 from rich.padding import Padding
 from rich.table import Table
 from rich.text import Text
 
 from ata import __version__
 from ata.experiment import terminal
-from ata.experiment.terminal import console, err_console, note
+from ata.experiment.terminal import console, err_console, escape, note
 
 class _ReflowedHelp(typer.core.TyperGroup):
     """Commands whose help is their docstring, wrapped to the terminal: typer's rich mode keeps
@@ -47,9 +46,16 @@ AddressOption = typer.Option(None, "--address", metavar="ADDRESS",
 ForceOption = typer.Option(False, "--force", help="Start over in an --out folder that holds the "
                                                   "results of another plan.")
 QuietOption = typer.Option(False, "--quiet", "-q", help="No progress bar.")
-ResamplesOption = typer.Option(2000, "--resamples", min=10, metavar="N",
-                               help="Bootstrap resamples.")
+ResamplesOption = typer.Option(2000, "--resamples", min=10, max=1_000_000, metavar="N",
+                               help="Bootstrap resamples (at most 1,000,000: time grows).")
 MarkdownOption = typer.Option(False, "--markdown", help="Print the tables as Markdown.")
+IsolateOption = typer.Option(False, "--isolate",
+                             help="Run the decision components (untrusted methods) in a "
+                                  "sandboxed process apart from the world (bubblewrap; pip "
+                                  "install 'ata[sandbox]'); see docs/evaluation.md.")
+TimeoutOption = typer.Option(60.0, "--decision-timeout", min=0.001, metavar="SECONDS",
+                             help="With --isolate: the time limit of one decision call of a "
+                                  "batch (default 60).")
 
 
 def user_errors(func: Callable) -> Callable:
@@ -122,25 +128,29 @@ def run(mission: Optional[str] = typer.Argument(
                                                   "scenario alone (MILP initial allocations; "
                                                   "default: none)."),
         force: bool = ForceOption,
-        quiet: bool = QuietOption) -> None:
+        quiet: bool = QuietOption,
+        isolate: bool = IsolateOption,
+        decision_timeout: float = TimeoutOption) -> None:
     """Run a mission and print its summary; write results beside the resolved mission.
 
     The run is a plan of one job on the chunked runner of `ata eval`. Each finished batch is
     saved in the run folder as it ends: rerun the same command with the same --out to go on
     after an interruption (only what is missing runs)."""
     from ata.experiment import execute, runner
+    from ata.experiment.isolate import require_sandbox
 
+    iso = require_sandbox(decision_timeout) if isolate else None
     session = runner.load_session(mission, set_ or [], _split(plugins))
     m = session.mission
     workers = workers or m.settings.workers
     # the components are built (checkpoints read) before any folder is made or scenario runs
-    runner.build_once(m, session.registry)
+    runner.build_once(m, session.registry, iso)
     plan = runner.mission_plan(session, workers, chunk_size or runner.RUN_CHUNK)
     out_dir, result = execute.run_plan(
         plan, lambda done: (done.out_dir, runner.write_done(session, done)), out,
         executor=executor or ("serial" if workers <= 1 else "process"), workers=workers,
         address=address, cache=cache, force=force, notify=note,
-        progress=terminal.progress_bar(quiet))
+        progress=terminal.progress_bar(quiet), isolate=iso)
     terminal.key_values(f"{m.display_name()}: {m.settings.name}",
                         runner.summary_rows(session, result))
     terminal.warn(result.warnings)
@@ -183,7 +193,9 @@ def eval_(paths: List[str] = typer.Argument(
                                                     "~/.cache/ata."),
           no_cache: bool = typer.Option(False, "--no-cache", help="Use no cache."),
           force: bool = ForceOption,
-          quiet: bool = QuietOption) -> None:
+          quiet: bool = QuietOption,
+          isolate: bool = IsolateOption,
+          decision_timeout: float = TimeoutOption) -> None:
     """Evaluate methods on held-out scenarios across team settings and uncertainty levels.
 
     Each finished work unit is saved in the output folder as it ends: rerun the same command
@@ -192,9 +204,11 @@ def eval_(paths: List[str] = typer.Argument(
     from ata.experiment import evaluate as ev
     from ata.experiment import execute
     from ata.experiment import report as rep
+    from ata.experiment.isolate import require_sandbox
     from ata.experiment.results import read_results
     from ata.runtime.executors import EXECUTORS
 
+    iso = require_sandbox(decision_timeout) if isolate else None
     if executor not in EXECUTORS:
         raise MissionError("--executor", None, f"unknown executor {executor!r}; choose one of "
                            + ", ".join(EXECUTORS))
@@ -202,19 +216,20 @@ def eval_(paths: List[str] = typer.Argument(
     # every job is built and validated before any scenario runs or anything is written
     suites, jobs = ev.plan(list(paths), scenarios=scenarios, seed=seed,
                            methods=_split_or_none(methods), settings=_split_or_none(settings),
-                           levels=_split_or_none(levels))
+                           levels=_split_or_none(levels), isolate=iso)
     cache_dir = None if no_cache else (cache or ev.default_cache_dir())
     plan = ev.eval_plan(suites, jobs, chunk_size, describe={
         "paths": list(paths), "jobs": len(jobs), "chunk_size": chunk_size})
     arguments = {"paths": list(paths), "chunk_size": chunk_size, "scenarios": scenarios,
                  "seed": seed, "methods": methods, "settings": settings, "levels": levels,
                  "cache": str(cache_dir) if cache_dir else None,
-                 "first_scenario": ev.EVAL_FIRST_SCENARIO}
+                 "first_scenario": ev.EVAL_FIRST_SCENARIO,
+                 "isolate": iso.key() if iso else None}
     out_dir, result = execute.run_plan(
         plan, lambda done: (done.out_dir, ev.write_done(suites, jobs, chunk_size, arguments,
                                                         done)),
         out, executor=executor, workers=workers, address=address, cache=cache_dir, force=force,
-        notify=note, progress=terminal.progress_bar(quiet))
+        notify=note, progress=terminal.progress_bar(quiet), isolate=iso)
     terminal.report_tables(rep.summarize(read_results(out_dir)))
     terminal.warn(result.warnings)
     console.print(f"{len(result.rows)} rows in {result.wall_s:.1f} s; results: "
@@ -361,7 +376,7 @@ def train(mission: Optional[str] = typer.Argument(
         source = mission or str(runner.training_mission_for(names or ["ctr", "aux"]))
         # a mission file brings its own plugins; --plugins, when given, adds to them
         session = runner.load_session(source, list(set_ or []), names if mission else None)
-        run_dir = (prepare_out_dir(out) if out
+        run_dir = (prepare_out_dir(out, kind="train") if out
                    else runner.default_out_dir(session.mission, prefix="train-"))
     trainer = runner.build_trainer(session)
     m = session.mission
@@ -432,7 +447,7 @@ def plugins(verbose: bool = typer.Option(False, "--verbose", "-v",
         if info.plugin in optional_of:
             plugin = f"{plugin} (--plugins {optional_of[info.plugin]})"
         table.add_row(info.name, info.kind, plugin, info.dist)
-    console.print(table)
+    console.print(terminal.add_broken_plugins(table, registry.broken))
     missing = [n for n, mod in OPTIONAL_PLUGINS.items() if mod not in loaded]
     if missing:
         console.print(f"Optional plugins (the learned methods) load when a mission names one "
@@ -478,7 +493,8 @@ def show(target: Optional[str] = typer.Argument(
     the map through time (show_map.gif); see docs/show.md."""
     from ata.viz.show import show as show_scenario
 
-    terminal.show_summary(show_scenario(target, scenario, list(set_ or []), out, animate))
+    terminal.show_summary(show_scenario(target, scenario, list(set_ or []), out, animate,
+                                        progress=terminal.progress_bar(False)))
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(app())

@@ -231,3 +231,9 @@ def observed_after(sim, n):
 
 def perf(sim, b=0):
     return {k: v for k, v in enumerate(sim.sim.record.r_perf[b]) if v != 0}
+
+
+def small_mission(scenarios: int) -> str:
+    """The text of a small custom mission (2 humans, 3 robots, 10 POIs) for the CLI's tests."""
+    return (f'[mission]\nname = "small"\nsetting = "custom"\nhumans = 2\nrobots = 3\n'
+            f'tasks = 10\nscenarios = {scenarios}\n')

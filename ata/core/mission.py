@@ -41,18 +41,21 @@ class MissionSettings:
                        "components)")
     setting: str = param("a", choices=("a", "b", "custom"),
                          help="team setting: a (6/8/60), b (12/16/130) or custom")
-    humans: int | None = param(None, min=1, max=1000, help="number of humans (other than the "
-                               "setting's: the team is custom)")
-    robots: int | None = param(None, min=1, max=1000, help="number of robots (other than the "
-                               "setting's: the team is custom)")
-    tasks: int | None = param(None, min=1, max=10000, help="number of POIs (other than the "
-                              "setting's: the team is custom)")
+    humans: int | None = param(None, min=1, max=1000, help="number of humans, at most 1000 "
+                               "(arrays grow with the team); other than the setting's: custom")
+    robots: int | None = param(None, min=1, max=1000, help="number of robots, at most 1000 "
+                               "(arrays grow with the team); other than the setting's: custom")
+    tasks: int | None = param(None, min=1, max=10000, help="number of POIs, at most 10000 "
+                              "(arrays grow with them); other than the setting's: custom")
     seed: int = param(0, min=0, max=2**63 - 1, help="root seed: fixes every scenario")
-    scenarios: int = param(100, min=1, max=10_000_000, help="number of scenarios to run")
+    scenarios: int = param(100, min=1, max=10_000_000, help="scenarios to run (a row each)")
     first_scenario: int = param(0, min=0, help="index of the first scenario (held-out ranges)")
-    batch_size: int = param(500, min=1, max=100_000, help="scenarios stepped together")
-    workers: int = param(1, min=1, max=256, help="worker processes for `ata run`")
-    horizon_s: float = param(1800.0, min=1.0, help="mission length in seconds")
+    batch_size: int = param(500, min=1, max=100_000, help="scenarios stepped together (memory)")
+    workers: int = param(1, min=1, max=256, help="worker processes for `ata run` (~330 MB each)")
+    horizon_s: float = param(1800.0, min=1.0, max=86_400.0,
+                             help="mission length in seconds, at most a day (86400): the "
+                             "kernel records every decision epoch of every scenario, and "
+                             "steps every tick")
     epoch_s: float = param(60.0, min=1.0, help="decision epoch in seconds")
     tick_s: float = param(10.0, min=0.1, help="kernel tick in seconds")
     uncertainty: str = param("medium", choices=tuple(UNCERTAINTY_LEVELS) + ("custom",),
@@ -244,6 +247,49 @@ def secret_seed(value: Any) -> int | None:
     return seed
 
 
+MAX_DEPTH = 16
+"""Tables and arrays nested deeper than this are refused: no mission key needs more than two
+levels, and a deeply nested value exhausts the parser's recursion (or the validator's)."""
+MAX_INT_DIGITS = 20
+"""Integers of more digits than this are refused (2**64 has 20): no setting takes more, and a
+huge one costs quadratic time to convert, or exceeds Python's int-to-text limit."""
+
+
+def _sane(value: Any, depth: int = 0) -> str | None:
+    """Why a parsed TOML value is beyond sane bounds (None when it is not)."""
+    if depth > MAX_DEPTH:
+        return f"values nested more than {MAX_DEPTH} deep"
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, int) and abs(value) >= 10 ** MAX_INT_DIGITS:
+        return f"an integer of more than {MAX_INT_DIGITS} digits"
+    children = value.values() if isinstance(value, dict) else value \
+        if isinstance(value, list) else ()
+    return next((why for v in children if (why := _sane(v, depth + 1)) is not None), None)
+
+
+class BeyondLimits(ValueError):
+    """TOML that parses (or would) but holds values beyond `MAX_DEPTH` or `MAX_INT_DIGITS`."""
+
+
+def loads_toml(text: str) -> dict[str, Any]:
+    """tomllib.loads; `BeyondLimits` for what tomllib fails on otherwise (an integer beyond
+    Python's int-to-text limit, nesting that exhausts its recursion) and for values beyond
+    `MAX_DEPTH` or `MAX_INT_DIGITS`."""
+    try:
+        data = tomllib.loads(text)
+    except RecursionError:
+        raise BeyondLimits(f"values nested more than {MAX_DEPTH} deep") from None
+    except ValueError as exc:
+        if isinstance(exc, tomllib.TOMLDecodeError):
+            raise
+        raise BeyondLimits(f"an integer of more than {MAX_INT_DIGITS} digits") from None
+    why = _sane(data, -1)
+    if why is not None:
+        raise BeyondLimits(why)
+    return data
+
+
 def read_toml(path: str | Path) -> dict[str, Any]:
     """Parse a mission file, turning a missing file or a syntax error into a MissionError."""
     p = Path(path)
@@ -252,9 +298,11 @@ def read_toml(path: str | Path) -> dict[str, Any]:
     if p.is_dir():
         raise MissionError("", None, "is a directory, not a mission file", file=str(path))
     try:
-        return tomllib.loads(p.read_text(encoding="utf-8"))
+        return loads_toml(p.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise MissionError("", None, f"TOML syntax error: {exc}", file=str(path)) from None
+    except BeyondLimits as exc:
+        raise MissionError("", None, f"{exc}: refused", file=str(path)) from None
     except UnicodeDecodeError:
         raise MissionError("", None, "not a UTF-8 text file", file=str(path)) from None
 
@@ -269,7 +317,9 @@ def parse_override(text: str) -> tuple[list[str], Any]:
         raise MissionError("--set", None, f"{key!r} must name a table and a key, e.g. "
                            "mission.seed=3")
     try:
-        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+        value = loads_toml(f"v = {raw.strip()}")["v"]
+    except BeyondLimits as exc:
+        raise MissionError("--set", None, f"{key.strip()}: {exc}: refused") from None
     except tomllib.TOMLDecodeError:
         value = raw.strip()
     return path, value
@@ -414,7 +464,24 @@ def _validate(raw: dict[str, Any], registry: Register, source: str) -> Mission:
                    source=source, secret_seed=secret is not None)
 
 
+MAX_EPOCHS = 10_000
+"""Decision epochs per episode at most: the episode record holds an allocation per epoch, POI
+and scenario (`EpisodeRecord`), so memory grows with them."""
+MAX_TICKS = 1_000_000
+"""Ticks per episode at most: the kernel steps each one in Python, one after the other."""
+
+
 def _check_clock(s: MissionSettings) -> None:
+    epochs, ticks = s.horizon_s / s.epoch_s, s.horizon_s / s.tick_s
+    if epochs > MAX_EPOCHS:
+        raise MissionError("[mission]", "horizon_s", f"{s.horizon_s:g} s is {epochs:.0f} "
+                           f"epochs of {s.epoch_s:g} s, more than {MAX_EPOCHS:,} (the episode "
+                           "record holds an allocation per epoch): a shorter horizon_s or a "
+                           "longer epoch_s")
+    if ticks > MAX_TICKS:
+        raise MissionError("[mission]", "tick_s", f"{s.horizon_s:g} s is {ticks:.0f} ticks of "
+                           f"{s.tick_s:g} s, more than {MAX_TICKS:,} (the kernel steps each "
+                           "one): a longer tick_s or a shorter horizon_s")
     ratio = s.epoch_s / s.tick_s
     if abs(ratio - round(ratio)) > 1e-9:
         raise MissionError("[mission]", "epoch_s", f"{s.epoch_s} is not a whole number of "

@@ -4,6 +4,12 @@ Start-up order, fixed and readable: hook specs, built-in plugins, optional plugi
 user, entry points of the ``ata`` group, then ``check_pending()`` so that a misspelt hook name
 fails here rather than being ignored. Later, a mission that names a component no loaded plugin
 registers loads the plugin declared to provide it (lazy registration, ``ata.components``).
+
+A third-party plugin that cannot load (its module fails to import, its registration hook
+raises, or it registers a name another plugin holds) is left out and reported, as stevedore's
+load-failure callback does: one line names the package, the entry point and why
+(`BrokenPlugin`), every other command keeps working, and a mission naming one of its
+components fails with that line.
 """
 
 from __future__ import annotations
@@ -12,7 +18,8 @@ import difflib
 import importlib
 import os
 import sys
-from dataclasses import dataclass
+import weakref
+from dataclasses import dataclass, field
 from importlib import metadata
 from typing import Any, Callable, Iterable
 
@@ -87,6 +94,70 @@ def providers(names: Iterable[str]) -> list[str]:
 
 
 @dataclass(frozen=True)
+class BrokenPlugin:
+    """A third-party plugin left out because it failed to load."""
+
+    package: str         # "dist version" of the distribution that declares it
+    entry_point: str     # "NAME = module" as its entry_points.txt writes it
+    group: str
+    reason: str          # "ExceptionType: message"
+    components: tuple[tuple[str, str], ...] = field(default=())
+    """(kind, name) it declares or had registered, for the refusal of a mission naming one."""
+
+    def line(self) -> str:
+        return (f"plugin package {self.package}, entry point {self.entry_point} (group "
+                f"{self.group!r}) failed to load and is left out: {self.reason}")
+
+
+def _reason(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    if len(text) > 300:          # a message can hold a whole file; the line stays one line
+        text = text[:300] + "..."
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+_reported: "weakref.WeakKeyDictionary[Any, set[str]]" = weakref.WeakKeyDictionary()
+
+
+def _default_on_failure(broken: BrokenPlugin) -> None:
+    sys.stderr.write(f"warning: {broken.line()}\n")
+
+
+on_load_failure: Callable[[BrokenPlugin], None] = _default_on_failure
+"""Called with each plugin left out (stevedore's on_load_failure_callback), once per line and
+stderr: once per command, as each `ata` command is one process (and each in-process test
+invocation gets a stderr of its own); by default one warning line on stderr."""
+
+
+def reset_reports() -> None:
+    """Report each broken plugin again."""
+    _reported.clear()
+
+
+def _broken(pm: pluggy.PluginManager, broken: BrokenPlugin) -> None:
+    """Record a plugin left out on `pm` and report it, once per process and line."""
+    known = getattr(pm, "ata_broken", None)
+    if known is None:
+        known = pm.ata_broken = []
+    known.append(broken)
+    import multiprocessing
+    # a worker process rebuilds the registry: the command that started it has reported it
+    seen = _reported.setdefault(sys.stderr, set())
+    if broken.line() not in seen and multiprocessing.parent_process() is None:
+        seen.add(broken.line())
+        on_load_failure(broken)
+
+
+def broken_plugins(pm: pluggy.PluginManager) -> list[BrokenPlugin]:
+    """The third-party plugins `pm` left out, in the order they failed."""
+    return list(getattr(pm, "ata_broken", []))
+
+
+def _dist_label(ep: metadata.EntryPoint) -> str:
+    return f"{ep.dist.name} {ep.dist.version}" if ep.dist else "(unknown package)"
+
+
+@dataclass(frozen=True)
 class ComponentInfo:
     """One registered component."""
 
@@ -117,6 +188,8 @@ class Register:
         self._dist = "?"
 
     def __call__(self, kind: str, name: str, factory: Callable[..., Any]) -> None:
+        if hasattr(self, "_attempted"):
+            self._attempted.append((kind, name))
         if kind not in KINDS:
             raise ValueError(f"plugin {self._plugin}: unknown component kind {kind!r}; "
                              f"kinds: {', '.join(KINDS)}")
@@ -134,6 +207,11 @@ class Register:
     def names(self, kind: str) -> list[str]:
         return sorted(n for k, n in self.components if k == kind)
 
+    @property
+    def broken(self) -> list["BrokenPlugin"]:
+        """The third-party plugins left out because they failed to load (`broken_plugins`)."""
+        return broken_plugins(self._pm) if self._pm is not None else []
+
     def get(self, kind: str, name: str, where: str) -> ComponentInfo:
         """The component `name` of `kind`; an unknown one loads the plugin declared to provide
         it (under any kind: a name in the wrong slot is then named as what it is)."""
@@ -142,8 +220,24 @@ class Register:
         try:
             return self.components[(kind, name)]
         except KeyError:
+            broken = [b for b in broken_plugins(self._pm) if any(n == name for _, n in
+                                                               b.components)] if self._pm else []
+            if broken:
+                raise MissionError(where, None, f"{kind} {name!r} comes from a plugin that "
+                                   f"could not be loaded: {broken[0].line()}") from None
             declared = declared_components()
-            known = sorted(set(self.names(kind)) | {n for k, n in declared if k == kind})
+            if (kind, name) in declared and self._pm is not None and \
+                    self._pm.get_plugin(declared[(kind, name)]) is not None:
+                ep = _declarations()[(kind, name)]
+                raise MissionError(where, None, f"{kind} {name!r} is declared by package "
+                                   f"{_dist_label(ep)} (entry point {ep.name} = {ep.value}, "
+                                   f"group {COMPONENTS_GROUP!r}), but its plugin {ep.value} "
+                                   f"registered no {kind} of that name: a bug in that package"
+                                   ) from None
+            # what a mission can name: registered, or declared by a plugin not loaded yet
+            known = sorted(set(self.names(kind)) | {
+                n for (k, n), m in declared.items()
+                if k == kind and (self._pm is None or self._pm.get_plugin(m) is None)})
             hint = ""
             close = difflib.get_close_matches(name, known, n=1)
             if close:
@@ -156,6 +250,10 @@ class Register:
             if other:
                 hint = (f"; {name!r} is registered as a {other[0]}, which goes in another "
                         "[components] slot")
+            lost = [b for b in broken_plugins(self._pm) if not b.components] if self._pm else []
+            if lost:             # their components are unknown: one of them may be this one
+                hint += (f"; a plugin that may provide it could not be loaded: "
+                         f"{lost[0].line()}")
             raise MissionError(where, None, f"unknown {kind} {name!r}; registered: "
                                f"{', '.join(known) or '(none)'} (see: ata plugins){hint}") \
                 from None
@@ -170,26 +268,64 @@ class Register:
         # the declaring package, for plugins.toml (a module loaded here has no distinfo in pm)
         dists = {ep.value: f"{ep.dist.name} {ep.dist.version}" for ep in wanted if ep.dist}
         before = {n for n, _ in self._pm.list_name_plugin()}
+        entries = getattr(self._pm, "ata_entry_points", None)
+        if entries is None:
+            entries = self._pm.ata_entry_points = {}
+        failed = {b.entry_point for b in broken_plugins(self._pm)}
         for module in dict.fromkeys(ep.value for ep in wanted):
-            _add_optional(self._pm, module)
+            eps = [ep for ep in wanted if ep.value == module]
+            label = f"{eps[0].name} = {module}"
+            if label in failed:
+                continue
+            if module.split(".")[0] == "ata":
+                _add_optional(self._pm, module)        # ata's own: a failure is a bug, shown
+                continue
+            try:
+                _add_optional(self._pm, module)
+            except MissionError:
+                raise
+            except Exception as exc:                   # noqa: BLE001 - any failure leaves it out
+                declared = tuple((k, n) for (k, n), ep in _declarations().items()
+                                 if ep.value == module)
+                _broken(self._pm, BrokenPlugin(_dist_label(eps[0]), label, COMPONENTS_GROUP,
+                                               _reason(exc), declared))
+                continue
+            entries[module] = (_dist_label(eps[0]), label, COMPONENTS_GROUP)
         added = [(n, p) for n, p in self._pm.list_name_plugin() if n not in before]
         if not added:
             return
         _check_pending(self._pm)
         for plugin_name, plugin in added:
-            self._collect(plugin_name, plugin, dists.get(plugin_name))
-            if plugin_label(plugin_name) in OPTIONAL_PLUGINS:
+            if self._collect(plugin_name, plugin, dists.get(plugin_name)) and \
+                    plugin_label(plugin_name) in OPTIONAL_PLUGINS:
                 self.loaded.append(plugin_label(plugin_name))
 
-    def _collect(self, plugin_name: str, plugin: Any, dist: str | None = None) -> None:
+    def _collect(self, plugin_name: str, plugin: Any, dist: str | None = None) -> bool:
         """Ask one plugin for its components, remembering who registered them (and from which
-        distribution: `dist`, else `plugin_version`)."""
+        distribution: `dist`, else `plugin_version`). A plugin loaded from an entry point whose
+        registration fails is left out whole (its components and its hooks) and reported;
+        False then. Any other plugin's failure is raised: it is ata's, or a test's, bug."""
         caller = self._pm.subset_hook_caller("ata_register_components",
                                              remove_plugins=[p for p in self._pm.get_plugins()
                                                              if p is not plugin])
         self._plugin = plugin_name
         self._dist = dist or plugin_version(self._pm, plugin)
-        caller(register=self)
+        entry = getattr(self._pm, "ata_entry_points", {}).get(plugin_name)
+        if entry is None:
+            caller(register=self)
+            return True
+        before = dict(self.components)
+        self._attempted: list[tuple[str, str]] = []
+        try:
+            caller(register=self)
+        except Exception as exc:                       # noqa: BLE001 - any failure leaves it out
+            self.components = before
+            self._pm.unregister(plugin)                # its hooks must not run either
+            package, label, group = entry
+            _broken(self._pm, BrokenPlugin(package, label, group, _reason(exc),
+                                           tuple(dict.fromkeys(self._attempted))))
+            return False
+        return True
 
 
 def get_plugin_manager(*, optional: Iterable[str] = (), entry_points: bool = True,
@@ -209,8 +345,10 @@ def get_plugin_manager(*, optional: Iterable[str] = (), entry_points: bool = Tru
             raise MissionError("--plugins", None, f"unknown optional plugin {name!r}; "
                                f"available: {known}")
         _add_optional(pm, OPTIONAL_PLUGINS[name])
+    pm.ata_broken = []
+    pm.ata_entry_points = {}
     if entry_points:
-        pm.load_setuptools_entrypoints(THIRD_PARTY_GROUP)
+        _load_third_party(pm)
     for plugin in extra:
         pm.register(plugin)
     _check_pending(pm)
@@ -218,6 +356,30 @@ def get_plugin_manager(*, optional: Iterable[str] = (), entry_points: bool = Tru
         pm.trace.root.setwriter(lambda text: sys.stderr.write(text))
         pm.enable_tracing()
     return pm
+
+
+def _load_third_party(pm: pluggy.PluginManager) -> None:
+    """Register the entry points of the ``ata`` group (as pluggy's load_setuptools_entrypoints
+    does); one that fails to import or register is left out and reported, not raised: one
+    broken package must not stop every command."""
+    seen: set[str] = set()
+    for dist in list(metadata.distributions()):
+        for ep in dist.entry_points:
+            if ep.group != THIRD_PARTY_GROUP or ep.name in seen or pm.get_plugin(ep.name) \
+                    or pm.is_blocked(ep.name):
+                continue
+            seen.add(ep.name)
+            package = f"{dist.metadata['name']} {dist.version}"
+            label = f"{ep.name} = {ep.value}"
+            try:
+                plugin = ep.load()
+                pm.register(plugin, name=ep.name)
+            except pluggy.PluginValidationError:
+                raise                                  # a misspelt hook: fails at start-up
+            except Exception as exc:                   # noqa: BLE001 - any failure leaves it out
+                _broken(pm, BrokenPlugin(package, label, THIRD_PARTY_GROUP, _reason(exc)))
+                continue
+            pm.ata_entry_points[ep.name] = (package, label, THIRD_PARTY_GROUP)
 
 
 def _add_optional(pm: pluggy.PluginManager, module: str) -> None:
@@ -251,6 +413,9 @@ def _check_pending(pm: pluggy.PluginManager) -> None:
 
 def plugin_version(pm: pluggy.PluginManager, plugin: Any) -> str:
     """'dist version' of the package a plugin comes from ('ata x.y.z' for the built-ins)."""
+    entry = getattr(pm, "ata_entry_points", {}).get(pm.get_name(plugin) or "")
+    if entry is not None:
+        return entry[0]
     for p, dist in pm.list_plugin_distinfo():
         if p is plugin:
             return f"{dist.project_name} {dist.version}"

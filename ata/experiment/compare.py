@@ -133,9 +133,13 @@ def pairs(a: Results, b: Results | None, found: list[Pairing]) -> Iterator[Pair]
     for setting, level in cells:
         for p in found:
             sel_a = a.select(p.a, setting, level)
-            sel_b = other.select(p.b, *(other.cells()[0][1:] if across else (setting, level)))
+            cell_b = other.cells()[0][1:] if across else (setting, level)
+            sel_b = other.select(p.b, *cell_b)
             if sel_a.any() and sel_b.any():
-                pair = Pair(p, setting, level, a, other, sel_a, sel_b)
+                # two runs at other settings or levels: the table says both, A's first
+                pair = Pair(p, *(x if x == y else f"{x} - {y}"
+                                 for x, y in zip((setting, level), cell_b)),
+                            a, other, sel_a, sel_b)
                 if pair.values("score")[0].size:
                     yield pair
 
@@ -234,7 +238,7 @@ def mean_tables(folders: list[tuple[str, Results]], columns: list[str],
     cells: dict[tuple[str, str], list[list[str]]] = {}
     for name, res in folders:
         for column in columns:
-            check_column(res, column, name)
+            check_column(res, column, name, methods)
         for m, s, lv in res.cells():
             if methods is not None and m not in methods:
                 continue
@@ -253,10 +257,12 @@ def compare(a: Results, b: Results | None, columns: list[str], *, base: str | No
             resamples: int = RESAMPLES) -> list[Table]:
     """`ata compare`'s tables: the paired differences of `columns` (or, with `power`, the
     scenarios each needs for its CI to clear 0)."""
+    # the rows compared: the methods asked for and the one subtracted (all, without --methods)
+    rows = None if methods is None else list(methods) + ([base] if base else [])
     for res, name in ((a, "the first folder"), (b, "the second folder")):
         if res is not None:
             for c in columns:
-                check_column(res, c, name)
+                check_column(res, c, name, rows)
     found = pairings(a, b, base, methods)
     items = list(pairs(a, b, found))
     if not items:

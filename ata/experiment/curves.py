@@ -327,7 +327,7 @@ def write_curves(run_dir: str | Path, out_dir: str | Path | None = None,
     log = read_log(run_dir)
     out = Path(out_dir) if out_dir is not None else log.path.parent
     written: list[Path] = []
-    prepare_out_dir(out)
+    prepare_out_dir(out, kind="report", reads=(log.path.parent,))
     with writing(out):
         if with_figures:
             plt = pyplot()

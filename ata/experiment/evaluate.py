@@ -31,6 +31,7 @@ from ata.core.mission import UNCERTAINTY_LEVELS, Mission
 from ata.experiment import runlog
 from ata.experiment.execute import Done, Plan
 from ata.experiment.folders import safe_name, stamped_folder
+from ata.experiment.isolate import Isolation
 from ata.experiment.runner import Session, build_once, load_session
 from ata.experiment.suites import MethodSpec, Suite, load_suite
 from ata.experiment.units import Unit, fixed_chunks, make_units, run_units, scenario_ids
@@ -101,9 +102,11 @@ def _level_order(level: str) -> int:
 
 def plan(paths: list[str], *, scenarios: int | None = None, seed: int | None = None,
          methods: list[str] | None = None, settings: list[str] | None = None,
-         levels: list[str] | None = None, validate: bool = True) -> tuple[list[Suite], list[Job]]:
+         levels: list[str] | None = None, validate: bool = True,
+         isolate: Isolation | None = None) -> tuple[list[Suite], list[Job]]:
     """Read the suites and build every job's mission; with `validate`, build each job's
-    components once on one scenario, so that a bad method fails before any work starts."""
+    components once on one scenario, so that a bad method fails before any work starts (with
+    `isolate`, its decision components in a sandboxed process, never here)."""
     suites = [load_suite(p) for p in paths]
     names: dict[str, str] = {}
     for suite in suites:
@@ -149,7 +152,7 @@ def plan(paths: list[str], *, scenarios: int | None = None, seed: int | None = N
                            "setting, uncertainty) of " + ", ".join(paths))
     if validate:
         for job in jobs:
-            _validate_job(job)
+            _validate_job(job, isolate)
     return suites, jobs
 
 
@@ -186,12 +189,18 @@ def _job(suite: Suite, spec: MethodSpec, setting: str | None, level: str | None,
                session=session, source=suite.path)
 
 
-def _validate_job(job: Job) -> None:
+def _validate_job(job: Job, isolate: Isolation | None = None) -> None:
     """Build the job's components once, on one scenario (as `ata check` does), and check that
-    its scenarios are held out."""
+    its scenarios are held out (asking a sandboxed process, with `isolate`)."""
     m = job.mission
     try:
-        check_held_out(m, build_once(m, job.session.registry))
+        if isolate is None:
+            check_held_out(m, build_once(m, job.session.registry))
+        else:
+            from ata.experiment.proxies import isolated_simulation
+            with isolated_simulation(m.replace(scenarios=1), job.session.registry,
+                                     [m.settings.first_scenario], isolate) as sim:
+                check_held_out(m, sim)
     except MissionError as exc:
         raise _context(exc, job.source, job.method, job.setting, job.level) from None
 
@@ -232,7 +241,7 @@ def eval_plan(suites: list[Suite], jobs: list[Job], chunk_size: int = DEFAULT_CH
                 chunks=[fixed_chunks(scenario_ids(j.mission), chunk_size) for j in jobs],
                 key=plan_key(jobs, chunk_size), describe=describe or {},
                 unit_name="work units", title=f"eval: {len(jobs)} (method, setting, level)",
-                default_out=lambda: default_out_dir(suites))
+                default_out=lambda: default_out_dir(suites), command="eval")
 
 
 def write_done(suites: list[Suite], jobs: list[Job], chunk_size: int,

@@ -23,6 +23,7 @@ from ata.core.mission import Mission
 from ata.core.registry import Register
 from ata.experiment import runlog
 from ata.experiment.folders import cannot_write, prepare_out_dir
+from ata.experiment.isolate import Isolation, close_idle
 from ata.experiment.units import make_units, run_units
 from ata.runtime import memory
 from ata.runtime.executors import make_executor
@@ -46,6 +47,8 @@ class Plan:
     :param title: the progress bar's label.
     :param default_out: makes the output folder when none is given.
     :param notes: what the user is told before the plan runs (how it was cut to fit memory).
+    :param command: the command whose folder this is ("run", "eval": `folders.KINDS`),
+        recorded in plan.json; a folder of another kind is refused.
     """
 
     missions: list[Mission]
@@ -57,6 +60,7 @@ class Plan:
     title: str
     default_out: Callable[[], Path]
     notes: list[str] = field(default_factory=list)
+    command: str = "run"
 
     @property
     def units(self) -> int:
@@ -86,11 +90,11 @@ class Interrupted(Exception):
     """Ctrl-C stopped a plan: the message says what is saved and how to go on."""
 
 
-def open_out_dir(path: str | Path) -> Path:
-    """An output folder given by the user: refused if a training run's, then made and checked
-    writable (before any work)."""
-    runlog.refuse_training_folder(path)
-    return prepare_out_dir(Path(path))
+def open_out_dir(path: str | Path, command: str = "run") -> Path:
+    """An output folder given by the user: refused if another kind of command wrote it (a
+    training run's, an evaluation's for `ata run`), then made and checked writable (before any
+    work)."""
+    return prepare_out_dir(Path(path), kind=command)
 
 
 def resume_message(log: runlog.RunLog, out_dir: Path, what: str) -> str | None:
@@ -107,7 +111,7 @@ def run_plan(plan: Plan, write: Callable[[Done], T], out: str | Path | None = No
              executor: str = "serial", workers: int | None = None, address: str | None = None,
              cache: str | Path | None = None, force: bool = False,
              notify: Callable[[str], None] | None = None,
-             progress: ProgressFactory | None = None) -> T:
+             progress: ProgressFactory | None = None, isolate: Isolation | None = None) -> T:
     """Run the plan's missing units into `out` (default: `plan.default_out()`), then
     `write(done)` while the folder is still held; its value is returned.
 
@@ -116,6 +120,9 @@ def run_plan(plan: Plan, write: Callable[[Done], T], out: str | Path | None = No
     :param cache: the cache folder of results that depend on the scenario alone (None: none).
     :param force: start over in a folder that holds another plan's results.
     :param notify: told of messages for the user (resuming).
+    :param isolate: run the decision components of every unit in a sandboxed process
+        (`ata.experiment.isolate`); the plan's key then says so, so that a folder is never
+        resumed across isolated and in-process units.
     :raises Interrupted: on Ctrl-C, once the units under way are stopped.
     """
     with contextlib.ExitStack() as stack:
@@ -124,21 +131,29 @@ def run_plan(plan: Plan, write: Callable[[Done], T], out: str | Path | None = No
             memory.check(plan.missions, [max((int(c.size) for c in chunks), default=0)
                                          for chunks in plan.chunks],
                          pool.describe().get("workers", 1) if pool.parallel else 1)
-        out_dir = open_out_dir(out) if out is not None else plan.default_out()
+        out_dir = open_out_dir(out, plan.command) if out is not None else plan.default_out()
         stack.enter_context(runlog.FolderLock(out_dir))
         try:
-            log = runlog.RunLog(out_dir, plan.key, plan.units, force=force,
-                                describe=plan.describe,
+            key = plan.key if isolate is None else runlog.plan_key({"plan": plan.key,
+                                                                     **isolate.key()})
+            log = runlog.RunLog(out_dir, key, plan.units, force=force,
+                                describe={"command": plan.command, **plan.describe},
                                 expected=[ids for chunks in plan.chunks for ids in chunks])
         except runlog.NotSaved as exc:
             raise MissionError("", None, f"{exc}; nothing was run") from None
         stack.callback(log.close)
+        if isolate is not None:
+            # the decision processes kept between batches end with the plan; those the
+            # validation started here serve no worker process
+            stack.callback(close_idle)
+            if pool.parallel:
+                close_idle()
         for message in plan.notes + [dropped_message(log), resume_message(log, out_dir,
                                                                           plan.unit_name)]:
             if message and notify is not None:
                 notify(message)
         units = make_units(plan.missions, plan.chunks, cache=cache, executor=pool,
-                           registries=plan.registries)
+                           registries=plan.registries, isolate=isolate)
         before = sum(int(np.asarray(p["scenario"]).size) for p in log.done.values())
         bar = progress(plan.title, plan.scenarios, before) if progress is not None \
             else contextlib.nullcontext(None)

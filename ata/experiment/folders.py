@@ -3,8 +3,9 @@ safe), and their preparation and writing, whose I/O errors become one clear mess
 
 Every command that writes a folder (`ata run`, `eval`, `train`, `report`, `show`) names and
 prepares it here, so that a mission name such as ``../../x`` or ``/elsewhere/x`` can never
-place a folder outside runs/, and a full disk or an unwritable path is one message with exit
-status 2 (a `MissionError`), not a traceback.
+place a folder outside runs/, a folder another kind of command wrote is refused (not
+overwritten), and a full disk or an unwritable path is one message with exit status 2 (a
+`MissionError`), not a traceback.
 """
 
 from __future__ import annotations
@@ -24,11 +25,17 @@ def runs_root() -> Path:
     return Path(os.environ.get("ATA_RUNS", "runs"))
 
 
+NAME_LIMIT = 80
+"""Characters of a user's label kept in a folder name: a file name may hold 255 bytes, and a
+folder name is also a line of terminal text."""
+
+
 def safe_name(text: str, fallback: str = "run") -> str:
     """A form of a user's label that is one plain file name: no separator, no '..', no leading
-    dot ('w/o.AUX' -> 'w_o.AUX', '../../x' -> 'x', '/elsewhere/x' -> 'elsewhere_x')."""
-    name = re.sub(r"_+", "_", re.sub(r"[^A-Za-z0-9._-]+|\.\.+", "_", text))
-    return name.strip("._-") or fallback
+    dot, no control character, at most `NAME_LIMIT` characters ('w/o.AUX' -> 'w_o.AUX',
+    '../../x' -> 'x', '/elsewhere/x' -> 'elsewhere_x')."""
+    name = re.sub(r"_+", "_", re.sub(r"[^A-Za-z0-9._-]+|\.\.+", "_", text[:4 * NAME_LIMIT]))
+    return name.strip("._-")[:NAME_LIMIT].strip("._-") or fallback
 
 
 def stamped_folder(label: str) -> Path:
@@ -58,10 +65,88 @@ def new_folder(path: Path) -> Path:
     raise MissionError("--out", None, f"no free folder name like {path}")
 
 
-def prepare_out_dir(path: str | Path) -> Path:
-    """Create the output folder and check that it can be written, before any work is done; a
-    path under a file, a file, or a folder without write permission is one clear error."""
+KINDS: dict[str, tuple[str, tuple[str, ...], str]] = {
+    "train": ("a training run", ("checkpoint.pt", "best.pt", "log.csv"),
+              "resume it with ata train --resume {dir}"),
+    "eval": ("an evaluation", ("eval.json",), "go on with it with ata eval --out {dir}"),
+    "run": ("a run", ("summary.json",), "go on with it with ata run --out {dir}"),
+    "show": ("the pictures of ata show", ("show_map.png", "show_timeline.png",
+                                          "show_humans.png", "show_map.gif"),
+             "replace them with ata show --out {dir}"),
+    "report": ("a report", ("report.md", "curves.md"), "replace it with ata report --out {dir}"),
+}
+"""The kinds of folder the commands write: what each is, the files that mark it (the first
+kind whose file is there wins: a report is written into the folder it reads), and the command
+that goes on with (or replaces) it."""
+
+
+def folder_kind(path: str | Path) -> tuple[str, list[str]] | None:
+    """The kind of command that wrote `path` (a `KINDS` key) and the files that show it; None
+    for a folder that is missing, empty of them, or not a folder. A run or an evaluation that
+    has not finished yet is known by its plan.json."""
     path = Path(path)
+    if not path.is_dir():
+        return None
+    for kind, (_, marks, _) in KINDS.items():
+        held = [n for n in marks if (path / n).exists()]
+        if held:
+            return kind, held
+    plan = _plan(path)
+    if plan is not None:        # an unfinished run or evaluation: its plan says which
+        made = plan.get("command") or ("eval" if "paths" in plan else "run")
+        return str(made), ["plan.json"]
+    return None
+
+
+def _plan(path: Path) -> dict | None:
+    import json
+    try:
+        plan = json.loads((path / "plan.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return plan if isinstance(plan, dict) else None
+
+
+def refuse_other_kind(path: str | Path, kind: str, reads: tuple[Path, ...] = ()) -> None:
+    """A MissionError when `path` holds what another kind of command wrote (`KINDS`): writing
+    there would overwrite its files (a resolved mission, results.csv, report.md) and leave a
+    folder that neither command can go on with. A report may also go into a folder it reads."""
+    found = folder_kind(path)
+    if found is None or found[0] == kind:
+        return
+    if kind == "report" and any(_same(path, r) for r in reads):
+        return
+    what, _, goes_on = KINDS.get(found[0], (f"another command's output ({found[0]})", (), ""))
+    hint = f", or {goes_on.format(dir=path)}" if goes_on else ""
+    raise MissionError("--out", None, f"{path} is the folder of {what} "
+                       f"({', '.join(found[1])}); choose another folder{hint}")
+
+
+def _same(a: str | Path, b: str | Path) -> bool:
+    try:
+        return Path(a).resolve() == Path(b).resolve()
+    except OSError:
+        return False
+
+
+def prepare_out_dir(path: str | Path, kind: str | None = None,
+                    reads: tuple[Path, ...] = ()) -> Path:
+    """Create the output folder and check that it can be written, before any work is done; a
+    path under a file, a file, or a folder without write permission is one clear error. With
+    `kind` (the `KINDS` key of the calling command), a folder another kind of command wrote is
+    refused (`refuse_other_kind`)."""
+    path = Path(path)
+    too_long = next((part for part in path.parts if len(os.fsencode(part)) > 255), None)
+    if too_long is not None:        # the system's limit on one name; its error says no more
+        raise MissionError("--out", None, f"cannot write to {path}: a folder name of "
+                           f"{len(os.fsencode(too_long)):,} bytes, more than the 255 a "
+                           "file name may hold")
+    if kind is not None:
+        try:
+            refuse_other_kind(path, kind, reads)
+        except OSError as exc:
+            raise MissionError("--out", None, f"cannot write to {path}: "
+                               f"{exc.strerror or exc}") from None
     try:
         path.mkdir(parents=True, exist_ok=True)
         probe = path / f".ata-write-check-{os.getpid()}"

@@ -454,7 +454,7 @@ def write_report(run_dir: str | Path, reference: str | None = None, with_figures
     paired_ref = paired_reference(res, paired_ref)
     if with_figures:
         pyplot()                      # a missing matplotlib fails before anything is written
-    prepare_out_dir(out)
+    prepare_out_dir(out, kind="report", reads=tuple(dirs))
     written, paired = [], []
     with writing(out):
         if with_figures:

@@ -26,9 +26,11 @@ import numpy as np
 
 from ata.core.errors import MissionError
 from ata.core.kernel import REFERENCE_COLUMN
-from ata.core.mission import UNCERTAINTY_LEVELS
+from ata.core.mission import UNCERTAINTY_LEVELS, loads_toml
 
 RESAMPLES = 2000
+BOOTSTRAP_BLOCK = 1 << 22
+"""Resampled values drawn at once (32 MiB of indices)."""
 BOOTSTRAP_SEED = 20240601
 """The bootstrap's fixed seed: a report is the same every time it is made."""
 
@@ -37,6 +39,11 @@ REQUIRED = ("method", "setting", "uncertainty", "scenario", "seed", "score", "up
 """The columns an evaluation's results.csv must have."""
 RUN_REQUIRED = ("scenario", "score", "upper_bound", "fraction_of_u")
 """Those of an `ata run` folder's results.csv; the others come from its resolved mission."""
+DEFINED = ("score", "upper_bound")
+"""Numeric columns that every row defines: blank or NaN there is refused, as is an infinity in
+any column. Another column may hold NaN where its value is undefined (``fraction_of_u`` where
+U is 0, an ITA-MILP scenario that fell back): a report's means skip those, and `ata compare`
+refuses a column it is asked to compute on that holds one."""
 TEXT_COLUMNS = ("method", "setting", "uncertainty", "seed")
 INT_COLUMNS = ("scenario",)
 """results.csv's columns of text and of integers; every other column holds numbers (blank: NaN).
@@ -50,7 +57,7 @@ def bootstrap_ci(values: Any, resamples: int = RESAMPLES, level: float = 0.95,
                  seed: int = BOOTSTRAP_SEED) -> tuple[float, float, float]:
     """(mean, low, high): the mean and its percentile-bootstrap confidence interval.
 
-    Draws `resamples` resamples of the values with replacement (one matrix, no Python loop) and
+    Draws `resamples` resamples of the values with replacement (a matrix, in blocks) and
     takes the (1 - level) / 2 and (1 + level) / 2 quantiles of their means. NaN for no values.
     """
     v = np.asarray(values, dtype=float).ravel()
@@ -60,8 +67,12 @@ def bootstrap_ci(values: Any, resamples: int = RESAMPLES, level: float = 0.95,
     if v.size == 1:
         return mean, mean, mean
     gen = np.random.default_rng(seed)
-    idx = gen.integers(0, v.size, size=(resamples, v.size))
-    means = v[idx].mean(axis=1)
+    # in blocks of rows, so that memory stays bounded whatever `resamples` is; the generator
+    # draws the same stream in blocks as in one matrix, so the interval does not change
+    block = max(1, BOOTSTRAP_BLOCK // v.size)
+    means = np.concatenate([v[gen.integers(0, v.size, size=(min(block, resamples - start),
+                                                              v.size))].mean(axis=1)
+                            for start in range(0, resamples, block)])
     low, high = np.quantile(means, [(1.0 - level) / 2.0, (1.0 + level) / 2.0])
     return mean, float(low), float(high)
 
@@ -101,6 +112,8 @@ class Results:
     levels: list[str]
     replaced: list[Cell] = field(default_factory=list)
     pairs: list[tuple[str, str]] = field(default_factory=list)
+    origin: list[str] = field(default_factory=list)
+    """Where each row was read ("FILE line N"), for messages about one value."""
 
     def select(self, method: str, setting: str, level: str) -> np.ndarray:
         c = self.columns
@@ -122,6 +135,10 @@ class Results:
                 if self.select(m, s, lv).any()]
 
 
+ORIGIN = "\0origin"
+"""The key under which a parsed row keeps where it was read (no column can be named so)."""
+
+
 class _NotFinite(ValueError):
     """A score that is NaN, infinite or blank: no mean or paired difference can use it."""
 
@@ -135,7 +152,7 @@ def _parse(column: str, text: str) -> Any:
     if column in INT_COLUMNS:
         return int(text)
     value = float(text) if text != "" else math.nan
-    if column == "score" and not math.isfinite(value):
+    if math.isinf(value) or (column in DEFINED and not math.isfinite(value)):
         raise _NotFinite(text)
     return value
 
@@ -144,7 +161,7 @@ def _run_cell(folder: Path) -> dict[str, Any]:
     """The method, setting, level and seed of an `ata run` folder, from its resolved mission."""
     path = folder / "mission.resolved.toml"
     try:
-        mission = tomllib.loads(path.read_text(encoding="utf-8"))["mission"]
+        mission = loads_toml(path.read_text(encoding="utf-8"))["mission"]
         return {"method": str(mission["name"]), "setting": str(mission["setting"]),
                 "uncertainty": str(mission["uncertainty"]), "seed": str(mission["seed"])}
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, KeyError, TypeError,
@@ -165,7 +182,9 @@ def _read_one(path: str | Path) -> tuple[list[dict[str, Any]], list[str], list[t
                            "an evaluation folder (results.csv, from `ata eval`), a run folder "
                            "(`ata run`) or a training run folder (log.csv, from `ata train`)",
                            file=str(given))
-    with open(path, newline="", encoding="utf-8") as f:
+    # utf-8-sig: a spreadsheet saves a byte-order mark before the first column's name (the
+    # csv module reads its CRLF line ends as they are)
+    with open(path, newline="", encoding="utf-8-sig") as f:
         reader = csv.DictReader(f)
         rows = list(reader)
         header = list(reader.fieldnames or [])
@@ -192,6 +211,12 @@ def _read_one(path: str | Path) -> tuple[list[dict[str, Any]], list[str], list[t
                 what = "a finite number" if isinstance(exc, _NotFinite) else "a number"
                 raise MissionError("", None, f"line {line}: {column} is {text!r}, not {what}",
                                    file=str(path)) from None
+        share = typed.get("fraction_of_u")
+        if isinstance(share, float) and math.isnan(share) and typed.get("upper_bound", 0) > 0:
+            raise MissionError("", None, f"line {line}: fraction_of_u is "
+                               f"{row['fraction_of_u']!r}, not a finite number (U is "
+                               f"{typed['upper_bound']:g})", file=str(path))
+        typed[ORIGIN] = f"{path} line {line}"
         parsed.append(typed)
     if run:
         header = [c for c in REQUIRED if c not in header] + header
@@ -260,7 +285,8 @@ def read_results(path: str | Path | list) -> Results:
     settings = sorted(set(cols["setting"]))
     levels = sorted(set(cols["uncertainty"]), key=level_key)
     return Results(columns=cols, methods=methods, settings=settings, levels=levels,
-                   replaced=list(dict.fromkeys(replaced)), pairs=pairs)
+                   replaced=list(dict.fromkeys(replaced)), pairs=pairs,
+                   origin=[r[ORIGIN] for r in rows])
 
 
 def paired(a: Results, sel_a: np.ndarray, b: Results, sel_b: np.ndarray,
@@ -286,10 +312,22 @@ def paired_values(res: Results, ref: np.ndarray, other: np.ndarray,
     return paired(res, ref, res, other, column)
 
 
-def check_column(res: Results, column: str, source: str = "") -> None:
-    """A MissionError unless `column` is a numeric column of the results."""
+def check_column(res: Results, column: str, source: str = "",
+                 methods: list[str] | None = None) -> None:
+    """A MissionError unless `column` is a numeric column of the results whose every value
+    (in the rows of `methods`, if given) is a finite number: a mean or a paired difference
+    over a NaN is NaN, and one that skipped it would average other scenarios than it says."""
     if column in TEXT_COLUMNS or column in INT_COLUMNS or column not in res.columns:
         numeric = [c for c in res.columns if c not in TEXT_COLUMNS + INT_COLUMNS]
         raise MissionError("--column", None, f"no numeric column {column!r} in the results"
                            f"{' of ' + source if source else ''}; columns: "
                            + ", ".join(numeric))
+    rows = np.ones(len(res.columns[column]), bool) if methods is None else \
+        np.isin(res.columns["method"], methods)
+    bad = np.nonzero(rows & ~np.isfinite(np.asarray(res.columns[column], dtype=float)))[0]
+    if bad.size:
+        where = res.origin[bad[0]] if res.origin else f"row {bad[0] + 1}"
+        raise MissionError("--column", None, f"{column!r} is not a finite number in "
+                           f"{bad.size} row(s) of the results{' of ' + source if source else ''}"
+                           f" (the first: {where}, method {res.columns['method'][bad[0]]}): no "
+                           "mean or paired difference can use it")

@@ -30,8 +30,6 @@ PLAN = "plan.json"
 UNITS = "units.jsonl"
 LOCK = ".ata-lock"
 """Held (an advisory lock) by the run writing the folder; it names that run."""
-TRAINING_FILES = ("log.csv", "checkpoint.pt", "best.pt")
-"""What marks a training run's folder (`ata.training.TrainRun`)."""
 
 
 def plan_key(parts: Any) -> str:
@@ -60,6 +58,18 @@ def _decode(value: Any) -> Any:
     if isinstance(value, list):
         return [_decode(v) for v in value]
     return value
+
+
+def rows_digest(encoded_part: Any) -> str:
+    """The digest a record line carries of its unit's results (as JSON holds them): a line
+    whose results changed after they were written (a hand edit, flipped bits) fails it."""
+    text = json.dumps(encoded_part, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+
+FINITE = ("total", "upper_bound")
+"""Result columns that are finite in every scenario a unit ran: a NaN or an infinity there is
+no result, and would turn the run's summary and report into NaN."""
 
 
 def write_csv(path: Path, columns: list[str], rows: list[dict[str, Any]]) -> None:
@@ -113,9 +123,10 @@ class RunLog:
     """Opens (or resumes) the record of a plan in `out_dir`.
 
     On resume every line of units.jsonl is checked against the plan: a line that does not
-    parse, names no unit of the plan, repeats one, lacks a result, or holds other scenarios or
-    other columns than its unit's is dropped (and its unit run again); `dropped` says which and
-    why, and the file is rewritten without them.
+    parse, fails the digest of its rows (`rows_digest`: edited or corrupted after it was
+    written), names no unit of the plan, repeats one, lacks a result, holds a non-finite total,
+    or holds other scenarios or other columns than its unit's is dropped (and its unit run
+    again); `dropped` says which and why, and the file is rewritten without them.
 
     :param key: the plan's key (`plan_key`); a folder recorded under another key is refused.
     :param units: the number of work units of the plan.
@@ -183,6 +194,13 @@ class RunLog:
         for name, value in part.items():
             if name not in PER_RUN and np.shape(value) != want.shape:
                 return f"unit {index}'s {name} does not hold one value per scenario"
+        for name in FINITE:
+            try:
+                finite = bool(np.isfinite(np.asarray(part[name], dtype=float)).all())
+            except (TypeError, ValueError):
+                finite = False
+            if not finite:
+                return f"unit {index}'s {name} holds a value that is not a finite number"
         return None
 
     def _read(self, log: Path, repair: bool = False) -> dict[int, dict[str, Any]]:
@@ -201,9 +219,17 @@ class RunLog:
                 continue                                     # the last one, cut short
             try:
                 entry = json.loads(line)
-                entries.append((number, int(entry["unit"]), _decode(entry["part"]), line))
-            except (ValueError, KeyError, TypeError, AttributeError):
+                index, raw = int(entry["unit"]), entry["part"]
+            except (ValueError, KeyError, TypeError, AttributeError, RecursionError):
                 dropped.append((number, "not a unit's record"))
+                continue
+            if entry.get("digest") != rows_digest(raw):
+                dropped.append((number, f"unit {index}'s results do not match the digest "
+                                        "written with them (changed after they were written)"
+                                if "digest" in entry else
+                                f"unit {index}'s results carry no digest (an older record)"))
+                continue
+            entries.append((number, index, _decode(raw), line))
         # the columns most units hold (metrics differ between missions, not between units)
         sets = [frozenset(p) for _, _, p, _ in entries if isinstance(p, dict)]
         columns = set(max(sets, key=sets.count)) if sets else None
@@ -227,7 +253,9 @@ class RunLog:
     def add(self, index: int, part: dict[str, Any]) -> None:
         """Record a finished unit durably (written and fsynced before this returns); when it
         cannot be written whole, the file is cut back to the units before it (`NotSaved`)."""
-        data = memoryview((json.dumps({"unit": index, "part": _encode(part)}) + "\n").encode())
+        encoded = _encode(part)
+        data = memoryview((json.dumps({"unit": index, "part": encoded,
+                                       "digest": rows_digest(encoded)}) + "\n").encode())
         size = os.fstat(self._fd).st_size
         try:
             while data:
@@ -340,13 +368,3 @@ class FolderLock:
 
     def __exit__(self, *exc) -> None:
         self.release()
-
-
-def refuse_training_folder(out_dir: str | Path) -> None:
-    """A MissionError when `out_dir` is a training run's folder: a run or an evaluation there
-    would overwrite its resolved mission, and `ata train --resume` would then fail."""
-    path = Path(out_dir)
-    held = [n for n in TRAINING_FILES if (path / n).exists()]
-    if held:
-        raise MissionError("--out", None, f"{path} is the folder of a training run "
-                           f"({', '.join(held)}); choose another folder")

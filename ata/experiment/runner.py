@@ -24,6 +24,7 @@ from ata.core.registry import Register, collect_components, get_plugin_manager, 
 from ata.experiment import runlog
 from ata.experiment.execute import Done, Plan
 from ata.experiment.folders import stamped_folder
+from ata.experiment.isolate import Isolation
 from ata.experiment.units import (RUN_CHUNK, chunks_of, fixed_chunks, make_units, run_units,
                                   scenario_ids)
 from ata.runtime import memory
@@ -194,11 +195,21 @@ class RunResult:
         return out
 
 
-def build_once(mission: Mission, registry: Register) -> Simulation:
+def build_once(mission: Mission, registry: Register,
+               isolate: Isolation | None = None) -> Simulation | None:
     """Build the mission's components once, on its first scenario (as `ata check` does): a
     component that cannot fill its slot, or a checkpoint that cannot be read, fails here,
-    before any work starts."""
-    return Simulation(mission.replace(scenarios=1), registry, [mission.settings.first_scenario])
+    before any work starts. With `isolate`, the decision components are built in a sandboxed
+    process (`ata.experiment.isolate`), never here, and nothing is returned."""
+    one, ids = mission.replace(scenarios=1), [mission.settings.first_scenario]
+    if isolate is None:
+        sim = Simulation(one, registry, ids)
+        memory.remember(mission, sim.pm)      # the memory estimate asks them (ata_peak_bytes)
+        return sim
+    from ata.experiment.proxies import isolated_simulation
+    with isolated_simulation(one, registry, ids, isolate) as sim:
+        sim.pm.hook.ata_trained_on()           # waits for the process to build them
+    return None
 
 
 def plan_key(session: Session, chunks: list[np.ndarray]) -> str:

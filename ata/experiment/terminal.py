@@ -6,14 +6,49 @@ from __future__ import annotations
 import contextlib
 from typing import Any, Iterator
 
+import re
+
 from rich.console import Console
-from rich.markup import escape
+from rich.markup import escape as _markup_escape
 from rich.progress import (BarColumn, Progress, ProgressColumn, TaskProgressColumn, TextColumn,
                            TimeElapsedColumn, TimeRemainingColumn)
 from rich.table import Column, Table
 from rich.text import Text
 
 from ata.experiment.tables import layout
+
+
+WORD_LIMIT = 120
+"""Characters of one word (a run without spaces: a name, a path) shown at most: a 10 MB
+mission name is one short word in a message, not 10 MB on the terminal."""
+TEXT_LIMIT = 4000
+"""Characters of one message shown at most."""
+_CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f]")
+_LONG_WORD = re.compile(r"\S{%d,}" % (WORD_LIMIT + 1))
+
+
+def plain(text: str, newlines: bool = True) -> str:
+    """Text for the terminal from what a user wrote (names, titles, paths, and messages that
+    quote them): control characters shown as ``\\xNN`` (an ANSI escape in a mission title
+    cannot move the cursor or forge a line; with `newlines` False a newline is shown so too),
+    each overlong word and the whole shortened in the middle."""
+    text = _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}", str(text))
+    if not newlines:
+        text = text.replace("\n", "\\x0a")
+    text = _LONG_WORD.sub(lambda m: _shorten(m.group(), WORD_LIMIT), text)
+    return _shorten(text, TEXT_LIMIT)
+
+
+def _shorten(text: str, limit: int) -> str:
+    if len(text) <= limit:
+        return text
+    keep = limit // 2
+    return f"{text[:keep]}...({len(text) - 2 * keep:,} characters left out)...{text[-keep:]}"
+
+
+def escape(text: str) -> str:
+    """`plain` text, with rich's markup escaped (a message names tables as [mission])."""
+    return _markup_escape(plain(text))
 
 
 def help_without_type_tags() -> None:
@@ -42,6 +77,16 @@ class LazyConsole:
 
 console = LazyConsole()
 err_console = LazyConsole(stderr=True)
+
+
+def add_broken_plugins(table: Table, broken: list) -> Table:
+    """`table` with `ata plugins`' rows of the plugins left out: the components each declared
+    or had registered (unknown when its module did not import), marked broken."""
+    for item in broken:
+        module = item.entry_point.partition(" = ")[2]
+        for kind, name in item.components or [("(unknown)", "-")]:
+            table.add_row(name, kind, f"{module} (broken)", item.package)
+    return table
 
 
 def note(text: str) -> None:
@@ -111,15 +156,17 @@ def training_bar(title: str, trainer: Any, quiet: bool) -> Iterator[Any]:
 def table(title: str, header: list[str], rows: list[list[str]]) -> None:
     """A table with every value whole at the terminal's width: split into several, each with
     the first column, where it is too wide; long headers wrap between words."""
+    header = [plain(h, newlines=False) for h in header]
+    rows = [[plain(v, newlines=False) for v in row] for row in rows]
     parts = layout(header, rows, console.width)
     for k, part in enumerate(parts):
         more = f" ({k + 1} of {len(parts)})" if len(parts) > 1 else ""
-        drawn = Table(title=escape(title + more))
+        drawn = Table(title=_markup_escape(plain(title + more, newlines=False)))
         for i, width in zip(part.columns, part.widths):
-            drawn.add_column(escape(header[i]), justify="left" if i == 0 else "right",
+            drawn.add_column(_markup_escape(header[i]), justify="left" if i == 0 else "right",
                              width=width, overflow="fold")
         for row in rows:
-            drawn.add_row(*[escape(row[i]) for i in part.columns])
+            drawn.add_row(*[_markup_escape(row[i]) for i in part.columns])
         console.print(drawn)
 
 
@@ -127,11 +174,13 @@ def key_values(title: str, rows: list[tuple[str, str]]) -> None:
     """A key per line (`ata run`'s summary): readable at 80 columns."""
     from rich import box
 
-    drawn = Table(title=escape(title), box=box.SIMPLE, show_header=False, title_justify="left")
+    drawn = Table(title=_markup_escape(plain(title, newlines=False)), box=box.SIMPLE,
+                  show_header=False, title_justify="left")
     drawn.add_column("what", style="bold", no_wrap=True)
     drawn.add_column("value", overflow="fold")
     for key, value in rows:
-        drawn.add_row(escape(key), escape(value))
+        drawn.add_row(_markup_escape(plain(key, newlines=False)),
+                      _markup_escape(plain(value, newlines=False)))
     console.print(drawn)
 
 

@@ -22,6 +22,7 @@ from ata.core.kernel import Simulation
 from ata.core.mission import Mission
 from ata.core.registry import Register, collect_components, get_plugin_manager
 from ata.experiment import runlog
+from ata.experiment.isolate import Isolation
 from ata.runtime.cache import run_cache
 from ata.runtime.executors import Executor
 
@@ -31,10 +32,16 @@ RUN_CHUNK = 100
 
 
 def run_batch(mission: Mission, registry: Register, scenario_ids: np.ndarray,
-              on_epoch: Callable[[int], None] | None = None) -> dict[str, Any]:
-    """Simulate one batch and return its per-scenario arrays."""
-    sim = Simulation(mission, registry, scenario_ids)
-    record = sim.run(on_epoch=on_epoch)
+              on_epoch: Callable[[int], None] | None = None,
+              isolate: Isolation | None = None) -> dict[str, Any]:
+    """Simulate one batch and return its per-scenario arrays; with `isolate`, its decision
+    components run in a sandboxed process of their own (`ata.experiment.isolate`)."""
+    if isolate is None:
+        record = Simulation(mission, registry, scenario_ids).run(on_epoch=on_epoch)
+    else:
+        from ata.experiment.proxies import isolated_simulation
+        with isolated_simulation(mission, registry, scenario_ids, isolate) as sim:
+            record = sim.run(on_epoch=on_epoch)
     out = {"scenario": np.asarray(scenario_ids), "total": record.total,
            "upper_bound": record.upper_bound.copy(),
            "reallocations": record.reallocated.sum(axis=1)}
@@ -98,7 +105,9 @@ class Unit:
 
     ``registry`` is set only for units run in this process (a serial executor): the session's
     own, which may hold components no fresh plugin manager finds (a test's inline ones). A unit
-    sent to a worker builds a fresh plugin manager there.
+    sent to a worker builds a fresh plugin manager there. ``isolate``: its decision components
+    run in a sandboxed process apart (`--isolate`; one per method and host process at a time,
+    kept between its units).
     """
 
     job: int
@@ -107,11 +116,13 @@ class Unit:
     cache: str | None = None
     parallel: bool = False
     registry: Register | None = None
+    isolate: Isolation | None = None
 
 
 def make_units(missions: list[Mission], chunks: list[list[np.ndarray]], *,
                cache: Any = None, executor: Executor | None = None,
-               registries: list[Register] | None = None) -> list[Unit]:
+               registries: list[Register] | None = None,
+               isolate: Isolation | None = None) -> list[Unit]:
     """The units of a plan: job j's mission over each of its chunks, in order."""
     parallel = bool(executor is not None and executor.parallel)
     units = []
@@ -119,7 +130,7 @@ def make_units(missions: list[Mission], chunks: list[list[np.ndarray]], *,
         registry = None if parallel or registries is None else registries[j]
         for ids in parts:
             units.append(Unit(j, mission, ids, str(cache) if cache is not None else None,
-                              parallel, registry))
+                              parallel, registry, isolate))
     return units
 
 
@@ -132,7 +143,7 @@ def run_unit(unit: Unit, on_epoch: Callable[[int], None] | None = None) -> dict[
     if registry is None:
         registry = collect_components(get_plugin_manager(optional=mission.settings.plugins))
     with torch_one_thread(), run_cache(unit.cache):
-        out = run_batch(mission, registry, unit.ids, on_epoch=on_epoch)
+        out = run_batch(mission, registry, unit.ids, on_epoch=on_epoch, isolate=unit.isolate)
     out["wall_s"] = time.perf_counter() - t0
     return out
 

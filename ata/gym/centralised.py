@@ -53,6 +53,7 @@ from ata.core.kernel import Simulation
 from ata.experiment.runner import Session
 from ata.core.state import Allocation, DecisionContext
 from ata.gym.episodes import Episodes, load
+from ata.runtime import memory
 
 
 class CentralisedView:
@@ -65,6 +66,7 @@ class CentralisedView:
         self.n_epochs = mission.clock.n_epochs
         H, R, P = self.sizes.humans, self.sizes.robots, self.sizes.tasks
         probe = Simulation(mission, session.registry, [mission.settings.first_scenario])
+        memory.remember(mission, probe.pm)      # Episodes' memory check asks its components
         probe.reset()
         ctx = probe.begin_epoch()
         self.tables: dict[str, tuple[str, str]] = {}     # key -> ("inherent" | "observed", group)

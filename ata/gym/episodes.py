@@ -13,10 +13,12 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ata.core.errors import MissionError
 from ata.core.kernel import Simulation
 from ata.core.mission import Mission
 from ata.experiment.runner import BASELINE_MISSION, Session, load_session
 from ata.core.state import Allocation, DecisionContext, EpisodeRecord
+from ata.runtime import memory
 
 MAX_SEED = 2 ** 63 - 1
 """The largest root seed (as ``[mission] seed``)."""
@@ -25,12 +27,31 @@ MAX_SEED = 2 ** 63 - 1
 def load(mission: str | Path | Session | None, overrides: Sequence[str] = ()) -> Session:
     """The session of a mission: a file (with ``--set``-style overrides), a loaded `Session`,
     or None for the greedy reference mission (setting (a), ``ata/missions/greedy.toml``)."""
+    if isinstance(overrides, (str, bytes)):       # list("a.b=1") would be its characters
+        raise TypeError(f"overrides is a sequence of 'table.key=value' strings, not one "
+                        f"string: overrides=[{overrides!r}]")
     if isinstance(mission, Session):
         if overrides:
             raise ValueError("overrides apply to a mission file, not to a loaded Session")
         return mission
     return load_session(str(mission) if mission is not None else str(BASELINE_MISSION),
                         list(overrides))
+
+
+MAX_BATCH = 100_000
+"""Scenarios per episode at most (as ``[mission] batch_size``)."""
+
+
+def check_batch(batch: Any) -> int:
+    """A number of scenarios per episode (`num_envs`), checked: an integer from 1 to
+    `MAX_BATCH`; a float, a string or a bool is refused rather than truncated or repeated."""
+    if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)):
+        raise TypeError(f"the number of scenarios per episode (num_envs) must be an int, got "
+                        f"{type(batch).__name__} {batch!r}")
+    if not 1 <= int(batch) <= MAX_BATCH:
+        raise ValueError(f"the number of scenarios per episode (num_envs) must lie in 1 to "
+                         f"{MAX_BATCH:,}, got {batch}")
+    return int(batch)
 
 
 def check_seed(seed: Any) -> int:
@@ -42,6 +63,20 @@ def check_seed(seed: Any) -> int:
     return int(seed)
 
 
+def check_memory(mission: Mission, batch: int) -> None:
+    """Refuse (a MissionError naming the figure and the limit) `batch` scenarios stepped
+    together that would not fit in memory (`ata.runtime.memory`), before any is built."""
+    limit = memory.memory_limit()
+    fits = memory.largest_batch(mission, batch, 1, limit)
+    if fits == 0:
+        raise memory.too_large(mission, 1, limit)
+    if fits < batch:
+        raise MissionError("num_envs", None, f"{batch} scenarios of {mission.settings.name!r} "
+                           f"stepped together need about "
+                           f"{memory.gib(memory.batch_peak(mission, batch))} of memory, more "
+                           f"than {memory.limit_text(limit)}; give num_envs of at most {fits}")
+
+
 class Episodes:
     """Successive episodes of B scenarios each, decided from outside.
 
@@ -51,8 +86,8 @@ class Episodes:
     """
 
     def __init__(self, session: Session, batch: int):
-        if batch < 1:
-            raise ValueError(f"the number of scenarios per episode must be at least 1, got {batch}")
+        batch = check_batch(batch)
+        check_memory(session.mission, batch)
         self.mission: Mission = session.mission
         self.registry = session.registry
         self.batch = batch

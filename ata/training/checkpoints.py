@@ -3,12 +3,13 @@ scenario ranges their training drew from."""
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import Any, Callable, Iterator
 
 from ata.core.errors import MissionError
 from ata.runtime.heldout import EVAL_FIRST_SCENARIO
-from ata.runtime.inputs import resolve
+from ata.runtime.inputs import resolve, shipped_mismatch
 
 TRAINING_ID_LIMIT = EVAL_FIRST_SCENARIO
 """Training scenario ids lie below this; evaluation ids start there."""
@@ -38,8 +39,13 @@ def read_checkpoint(path: str | Path, kind: str | None = None) -> dict[str, Any]
         raise CheckpointError(p, "no such checkpoint (train one with `ata train`)")
     if p.is_dir():
         raise CheckpointError(p, "is a directory, not a checkpoint")
+    mismatch = shipped_mismatch(p)   # before unpickling: a changed file may be any bytes
+    if mismatch is not None:
+        raise CheckpointError(p, mismatch)
     try:
-        data = torch.load(p, map_location="cpu", weights_only=True)
+        with warnings.catch_warnings():     # torch warns of a foreign file's pickle protocol
+            warnings.simplefilter("ignore")   # before it refuses it: the refusal says it all
+            data = torch.load(p, map_location="cpu", weights_only=True)
     except Exception as exc:   # empty, truncated, corrupted, or not a torch file at all
         text = str(exc)
         if "weights only load failed" in text.lower():

@@ -10,8 +10,9 @@ metres.
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable, ContextManager
 
 import numpy as np
 
@@ -24,6 +25,19 @@ SIZE_IN, DPI = (8.0, 6.4), 80
 """The frames' size: 640 x 512 pixels."""
 FRAME_MS = 400
 """How long each frame shows, ms (a 30-epoch episode lasts 12 s)."""
+
+
+MAX_FRAMES = 150
+"""Frames at most: each takes about a third of a second to draw, so a long episode (720
+epochs took 223 s) shows every k-th epoch instead, the last one always."""
+
+
+def frame_epochs(ep: Episode) -> np.ndarray:
+    """The epochs drawn: every one, or every k-th (and the last) when there are more than
+    `MAX_FRAMES`."""
+    n = len(ep.epoch_times)
+    step = -(-n // MAX_FRAMES)
+    return np.unique(np.append(np.arange(0, n, step), n - 1)) if n else np.arange(0)
 
 
 def frame_times(ep: Episode) -> np.ndarray:
@@ -123,8 +137,12 @@ def legend(ep: Episode, fig: Any) -> None:
                frameon=False)
 
 
-def write_animation(ep: Episode, out_dir: str | Path) -> Path:
-    """Write `out_dir`/show_map.gif, one frame per epoch, looping; its path."""
+def write_animation(ep: Episode, out_dir: str | Path,
+                    progress: Callable[[str, int, int], ContextManager[Callable[[float], None]]]
+                    | None = None) -> Path:
+    """Write `out_dir`/show_map.gif, one frame per epoch (at most `MAX_FRAMES`: `frame_epochs`),
+    looping; its path. `progress` (`ata.experiment.execute.ProgressFactory`) is told of each
+    frame drawn."""
     Figure = figure_class()              # no matplotlib: one clear message first
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from PIL import Image
@@ -134,14 +152,19 @@ def write_animation(ep: Episode, out_dir: str | Path) -> Path:
     ax = fig.add_axes((0.08, 0.08, 0.6, 0.84))
     legend(ep, fig)
     frames = []
-    for k, t in enumerate(frame_times(ep)):
-        ax.clear()
-        draw_frame(ep, ax, k, float(t))
-        canvas.draw()
-        width, height = canvas.get_width_height()
-        frame = Image.frombuffer("RGBA", (width, height), canvas.buffer_rgba(), "raw", "RGBA",
-                                 0, 1)
-        frames.append(frame.convert("RGB").quantize(colors=255, dither=Image.Dither.NONE))
+    times, epochs = frame_times(ep), frame_epochs(ep)
+    bar = progress("frames of show_map.gif", len(epochs), 0) if progress is not None else \
+        contextlib.nullcontext(lambda n: None)
+    with bar as advance:
+        for k in epochs:
+            ax.clear()
+            draw_frame(ep, ax, int(k), float(times[k]))
+            canvas.draw()
+            width, height = canvas.get_width_height()
+            frame = Image.frombuffer("RGBA", (width, height), canvas.buffer_rgba(), "raw",
+                                     "RGBA", 0, 1)
+            frames.append(frame.convert("RGB").quantize(colors=255, dither=Image.Dither.NONE))
+            advance(1)
     path = Path(out_dir) / f"{STEM}.gif"
     frames[0].save(path, save_all=True, append_images=frames[1:], duration=FRAME_MS, loop=0,
                    optimize=False)

@@ -12,6 +12,7 @@ import csv
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from ata.core import mission as mission_mod
 from ata.core.errors import MissionError
@@ -83,11 +84,12 @@ def check_whole(source: str, session: runner.Session) -> None:
 
 
 def show(target: str | None, scenario: int | None, overrides: list[str] | None = None,
-         out: str | Path | None = None, animate: bool = False) -> Shown:
+         out: str | Path | None = None, animate: bool = False, progress: Any = None) -> Shown:
     """Replay `scenario` (default: the mission's first) of a run folder or mission file and
     write its three pictures, PNG and SVG (with `animate`, the map through time as a GIF too),
     to `out` (default: RUN_DIR/show-N, or runs/show-NAME-N). Bad input raises MissionError
-    before anything runs or is written."""
+    before anything runs or is written. `progress` (a progress-bar factory, as `ata run`'s)
+    is told of the animation's frames."""
     source, run_dir = mission_of(target)
     session = runner.load_session(source, list(overrides or []))
     if run_dir is not None:
@@ -103,12 +105,12 @@ def show(target: str | None, scenario: int | None, overrides: list[str] | None =
     if out is None:
         out = (run_dir / f"show-{scenario}" if run_dir is not None else
                named_folder(f"show-{m.settings.name}-{scenario}"))
-    out = prepare_out_dir(out)            # an unwritable --out: say so before the replay
+    out = prepare_out_dir(out, kind="show")   # unwritable, another's: say so before the replay
     episode = replay(m, session.registry, scenario)
     with writing(out):
         written = draw.write_figures(episode, out)
         if animate:
-            written.append(write_animation(episode, out))
+            written.append(write_animation(episode, out, progress))
     checked = run_dir is not None and not overrides
     score = run_score(run_dir, scenario) if checked else None
     return Shown(episode=episode, written=written, out_dir=Path(out), run_score=score,

@@ -61,8 +61,9 @@ class RunSettings:
                            "builtin:NAME), its pi_C rule aside, and train on from there "
                            "(another team setting, say)")
     eval_every: int = param(25, min=1, help="held-out validation every N steps")
-    eval_scenarios: int = param(64, min=1, help="validation scenarios per team setting (and "
-                                "per uncertainty level, with uncertainty_levels)")
+    eval_scenarios: int = param(64, min=1, max=100_000,
+                                help="validation scenarios per team setting (and per "
+                                "uncertainty level, with uncertainty_levels); one batch")
     checkpoint_every: int = param(10, min=1, help="write checkpoint.pt every N steps")
     threads: int = param(1, min=1, max=256, help="torch CPU threads")
     device: str = param("cpu", help="torch device of the ITA and CTR phases' updates (the "
@@ -74,12 +75,13 @@ class RunSettings:
 class NetSettings:
     """The architecture (NetConfig; a checkpoint records it)."""
 
-    d_model: int = param(32, min=8, help="network: embedding width")
-    heads: int = param(4, min=1, help="network: attention heads")
-    layers: int = param(2, min=1, help="network: attention layers")
-    hidden: int = param(64, min=4, help="network: width of the scorers")
-    z_dim: int = param(4, min=1, help="network: cVAE latent size")
-    recon_hidden: int = param(32, min=4, help="network: width of the reconstruction networks")
+    d_model: int = param(32, min=8, max=1024, help="network: embedding width (memory grows)")
+    heads: int = param(4, min=1, max=64, help="network: attention heads (scores: POIs^2 each)")
+    layers: int = param(2, min=1, max=64, help="network: attention layers (memory grows)")
+    hidden: int = param(64, min=4, max=4096, help="network: width of the scorers (memory)")
+    z_dim: int = param(4, min=1, max=256, help="network: cVAE latent size (memory grows)")
+    recon_hidden: int = param(32, min=4, max=4096,
+                              help="network: width of the reconstruction networks (memory)")
 
 
 @dataclass

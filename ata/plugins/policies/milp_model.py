@@ -42,7 +42,8 @@ class MilpSettings:
     tour_constant: float = param(0.7124, min=0.0, help="route length per POI is this times "
                                  "sqrt(area / POIs per robot) (Beardwood-Halton-Hammersley)")
     workers: int = param(1, min=1, max=256, help="worker processes solving scenarios")
-    chunk_size: int = param(16, min=1, help="scenarios per worker task")
+    chunk_size: int = param(16, min=1, max=100_000,
+                            help="scenarios per worker task (at most batch_size's bound)")
 
 
 @dataclass

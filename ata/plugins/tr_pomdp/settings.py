@@ -35,8 +35,9 @@ class TrainingSettings:
     updates: int = param(32, min=1, help="training: gradient steps per step")
     lr: float = param(1e-3, min=0.0, max=1.0, help="training: Adam learning rate of the agents")
     gamma: float = param(0.9, min=0.0, max=1.0, help="training: discount per decision epoch")
-    buffer: int = param(30000, min=64, help="training: replay buffer capacity, transitions "
-                        "per member kind")
+    buffer: int = param(30000, min=64, max=10_000_000,
+                        help="training: replay buffer capacity, transitions per member kind "
+                        "(allocated whole at the start)")
     minibatch: int = param(256, min=1, help="training: transitions per gradient step")
     target_sync: int = param(50, min=1, help="training: gradient steps between copies of the "
                              "online networks into the target networks")
@@ -45,7 +46,7 @@ class TrainingSettings:
     eps_decay_steps: int = param(300, min=1, help="training: steps of linear epsilon decay")
     k: int = param(4, min=1, help="training: candidate POIs per agent (and roles a human may "
                    "release)")
-    hidden: int = param(64, min=4, help="training: width of the agents' Q-networks")
+    hidden: int = param(64, min=4, max=4096, help="training: width of the agents' Q-networks")
     reward_scale: float = param(20.0, min=1e-6, help="training: points per unit of agent "
                                 "reward")
     team_weight: float = param(0.5, min=0.0, help="training: weight of the team's points of the "

@@ -1,0 +1,233 @@
+"""The sandboxed decision process of `--isolate`: it builds and runs a method's components.
+
+It builds a mission's decision components itself and answers the host's decision calls, one
+request per phase and batch.
+
+Run as ``python -m ata.runtime.decider`` inside the sandbox (`ata.runtime.sandbox`), its stdin
+and stdout the channel (`ata.runtime.frames`): pickled requests in, safe frames out. It gets the
+public mission (no seed), builds the components of the decision slots with a plugin manager of
+its own, as the kernel would (one instance per name, the same hook order and slot checks), and
+draws their numbers from the decision generator keys the host sends. It never sees the world:
+only what a `DecisionContext` holds crosses the channel.
+"""
+
+from __future__ import annotations
+
+import copy
+import importlib
+import os
+import pickle
+import sys
+import time
+import traceback
+from types import MappingProxyType, SimpleNamespace
+from typing import Any
+
+import numpy as np
+import pluggy
+
+from ata.core import hookspecs
+from ata.core.errors import ContractError, MissionError
+from ata.core.kernel import (DECISION_SLOTS, REFERENCE_HOOK, WORLD_HOOKS, build_component,
+                             is_reference)
+from ata.core.mission import SLOT_HOOKS, SLOT_KINDS, Mission
+from ata.core.registry import collect_components, get_plugin_manager
+from ata.core.rng import StreamRNG
+from ata.core.state import Allocation, DecisionContext, DecisionView, EpisodeOutcome
+from ata.runtime.frames import child_recv, child_send
+
+
+def _names(value: str | list[str]) -> list[str]:
+    return value if isinstance(value, list) else [value]
+
+
+def _frozen(value: Any) -> Any:
+    """What the kernel hands a decision-maker: a read-only copy (an array, or a table's
+    `frozen`), so that a component behaves here as it does in the host's process."""
+    if value is None:
+        return None
+    if isinstance(value, np.ndarray):
+        out = np.array(value, copy=True)
+        out.flags.writeable = False
+        return out
+    return value.frozen() if hasattr(value, "frozen") else value
+
+
+def plugins(mission: Mission, modules: list[str], only: bool) -> pluggy.PluginManager:
+    """The plugin manager the components are built from. With `only`, just the plugin modules
+    that register the method's components (the host names them): the world's plugins and
+    their imports (scipy's, for the MILP baseline) would cost this process's start for
+    nothing. Else every plugin a worker process would load, and the modules named."""
+    if only:
+        pm = pluggy.PluginManager("ata")
+        pm.add_hookspecs(hookspecs)
+    else:
+        pm = get_plugin_manager(optional=mission.settings.plugins)
+    for name in modules:             # a method's plugin that no entry point declares
+        module = importlib.import_module(name)
+        if pm.get_plugin(name) is None and not pm.is_registered(module):
+            pm.register(module, name=name)
+    pm.check_pending()
+    return pm
+
+
+class Decider:
+    """The decision components of one batch and what they have been shown so far."""
+
+    def __init__(self, mission: Mission, modules: list[str], only: bool):
+        self.mission = mission
+        registry = collect_components(plugins(mission, modules, only))
+        built: dict[str, Any] = {}
+        ordered: list[tuple[str, Any]] = []
+        for slot in DECISION_SLOTS:
+            for name in _names(getattr(mission.slots, slot)):
+                if name not in built:
+                    built[name] = build_component(registry, mission, SLOT_KINDS[slot], name)
+                ordered.append((f"{slot}:{name}", built[name]))
+        # the kernel's registration: once per instance, reversed (pluggy calls the last first)
+        self.pm = pluggy.PluginManager("ata")
+        self.pm.add_hookspecs(hookspecs)
+        unique = [(n, c) for i, (n, c) in enumerate(ordered)
+                  if not any(c is other for _, other in ordered[:i])]
+        for plugin_name, component in reversed(unique):
+            self.pm.register(component, name=plugin_name)
+        self.pm.check_pending()
+        self._refuse(unique)
+        everyone = [c for _, c in ordered]
+        self.callers = {}
+        for slot, hook_name in SLOT_HOOKS.items():
+            name = _names(getattr(mission.slots, slot))[0]
+            component = built[name]
+            impls = [i.plugin for i in getattr(self.pm.hook, hook_name).get_hookimpls()]
+            if not any(p is component for p in impls):
+                raise MissionError("[components]", slot, f"component {name!r} cannot fill this "
+                                   f"slot: it implements no {hook_name}")
+            self.callers[slot] = self.pm.subset_hook_caller(
+                hook_name, remove_plugins=[c for c in everyone if c is not component])
+        names = {n for slot in DECISION_SLOTS for n in _names(getattr(mission.slots, slot))}
+        self.settings = MappingProxyType(
+            {n: copy.deepcopy(mission.component_settings.get(n)) for n in sorted(names)})
+        self.sizes, self.clock = mission.sizes, mission.clock
+        self.rng: StreamRNG | None = None
+        self.channel = None
+        self.inherent = None
+        self.observed = None
+        self.recon: dict[str, np.ndarray] = {}
+        self.recon_epoch = -1
+
+    def _refuse(self, unique: list[tuple[str, Any]]) -> None:
+        """The kernel's refusals, for the components the host's kernel never sees."""
+        for hook_name in (*WORLD_HOOKS, REFERENCE_HOOK):
+            impls = [i.plugin for i in getattr(self.pm.hook, hook_name).get_hookimpls()]
+            for name, component in unique:
+                if any(p is component for p in impls):
+                    slot, comp = name.split(":", 1)
+                    raise ContractError(f"{slot} component {comp!r} implements {hook_name}, "
+                                        "which hands it the world: a decision-maker sees the "
+                                        "scenario through its DecisionContext alone")
+        for name, component in unique:
+            if is_reference(component):
+                raise ContractError(f"{name}: a reference reads the true state; --isolate "
+                                    "runs methods, which never do")
+
+    # -- requests --------------------------------------------------------------------------------
+    def take(self, req: dict[str, Any]) -> None:
+        """Keep what a request brings the first time it is sent: the batch's decision keys, the
+        published constants, I, this epoch's observed S."""
+        if "keys" in req:
+            self.rng = StreamRNG(req["keys"])
+            self.channel = req["channel"]
+            self.inherent = _frozen(req["inherent"])
+        if "observed" in req:
+            self.observed = _frozen(req["observed"])
+        torch = sys.modules.get("torch")
+        if torch is not None and torch.get_num_threads() != 1:
+            torch.set_num_threads(1)     # as a unit in the host runs: one reduction order
+
+    def context(self, req: dict[str, Any]) -> DecisionContext:
+        recon = self.recon if self.recon_epoch == req["epoch"] else {}
+        return DecisionContext(epoch=req["epoch"], time=req["time"], sizes=self.sizes,
+                               clock=self.clock, inherent=self.inherent, observed=self.observed,
+                               reconstructed={k: _frozen(v) for k, v in recon.items()},
+                               previous=_frozen(req["allocation"]),
+                               reallocatable=_frozen(req["reallocatable"]), rng=self.rng,
+                               settings=self.settings, channel=self.channel)
+
+    def handle(self, req: dict[str, Any]) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        op = req["op"]
+        self.take(req)
+        if op == "reconstruct":
+            view = DecisionView(SimpleNamespace(
+                batch_size=self.rng.batch_size, sizes=self.sizes, clock=self.clock,
+                epoch=req["epoch"], now=req["time"], allocation=req["allocation"],
+                channel=self.channel), self.rng)
+            recon: dict[str, np.ndarray] = {}
+            self.pm.hook.ata_reconstruct(sim=view, obs=self.observed, inherent=self.inherent,
+                                         out=recon)
+            self.recon, self.recon_epoch = recon, req["epoch"]
+            return {}, {k: np.asarray(v) for k, v in recon.items()}
+        if op in ("initial", "reallocate"):
+            slot = "initial" if op == "initial" else "reallocation"
+            kwargs = {"active": req["active"]} if op == "reallocate" else {}
+            alloc = self.callers[slot](ctx=self.context(req), **kwargs)
+            if not isinstance(alloc, Allocation):
+                raise ContractError(f"{slot} policy returned {type(alloc).__name__}, not an "
+                                    "Allocation")
+            return {}, {f: np.asarray(getattr(alloc, f)) for f in
+                        ("robot", "navigator", "classifier")}
+        if op == "condition":
+            return {}, {"active": np.asarray(self.callers["condition"](ctx=self.context(req)),
+                                             dtype=bool)}
+        if op == "trained_on":
+            ranges = [[[int(x) for x in r] for r in (found or [])]
+                      for found in self.pm.hook.ata_trained_on()]
+            return {"ranges": ranges}, {}
+        if op == "episode_scored":
+            outcome = EpisodeOutcome(r_perf=_frozen(req["r_perf"]),
+                                     reallocated=_frozen(req["reallocated"]),
+                                     allocations=_frozen(req["allocations"]))
+            self.pm.hook.ata_episode_scored(episode=outcome)
+            return ({"warnings": [str(w) for w in outcome.warnings]},
+                    {k: np.asarray(v, dtype=float) for k, v in outcome.metrics.items()})
+        raise ValueError(f"unknown request {op!r}")
+
+
+def serve(fd_in: int, fd_out: int) -> None:
+    """Answer requests until the host closes the channel (or says close)."""
+    decider: Decider | None = None
+    while True:
+        req = child_recv(fd_in)
+        if req is None or req.get("op") == "close":
+            return
+        try:
+            if req["op"] == "init":
+                sys.path[:0] = req.get("paths", [])
+                for name in req.get("modules", []):
+                    importlib.import_module(name)
+                decider = Decider(pickle.loads(req["mission"]), req.get("modules", []),
+                                  req.get("only", False))
+                child_send(fd_out, {"ready": True})
+                continue
+            t0 = time.perf_counter()
+            header, arrays = decider.handle(req)
+            # the seconds its components took: the rest of a call's time is the channel's
+            header["busy_s"] = time.perf_counter() - t0
+            child_send(fd_out, header, arrays)
+        except (ContractError, MissionError) as exc:
+            child_send(fd_out, {"error": str(exc), "kind": type(exc).__name__})
+        except Exception:               # noqa: BLE001 - the host shows it as text
+            child_send(fd_out, {"error": traceback.format_exc(), "kind": "exception"})
+
+
+def main() -> None:
+    # the channel gets private descriptors; fd 1 becomes stderr, so that a component's print
+    # cannot corrupt a frame
+    fd_in, fd_out = os.dup(0), os.dup(1)
+    devnull = os.open(os.devnull, os.O_RDONLY)
+    os.dup2(devnull, 0)
+    os.dup2(2, 1)
+    serve(fd_in, fd_out)
+
+
+if __name__ == "__main__":
+    main()
