@@ -32,8 +32,31 @@ from typing import Any
 
 import numpy as np
 import torch
-from sb3_contrib import MaskablePPO
-from stable_baselines3.common.vec_env import VecEnv, VecNormalize
+
+
+def arguments() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        description=" ".join(__doc__.split("\n\n")[0].split()),
+        epilog="Needs: pip install -e '.[gym]' stable-baselines3 sb3-contrib")
+    budget = parser.add_mutually_exclusive_group()
+    budget.add_argument("--minutes", type=float, default=5.0, help="wall-time training budget")
+    budget.add_argument("--steps", type=int, help="environment steps to train (rounded up to whole "
+                        "rollouts)")
+    parser.add_argument("--envs", type=int, default=32, help="environments stepped together")
+    parser.add_argument("--eval", type=int, default=200, help="held-out scenarios")
+    parser.add_argument("--seed", type=int, default=0, help="PPO's seed")
+    return parser
+
+
+if __name__ == "__main__":
+    ARGS = arguments().parse_args()      # --help answers without the RL libraries
+
+try:
+    from sb3_contrib import MaskablePPO
+    from stable_baselines3.common.vec_env import VecEnv, VecNormalize
+except ModuleNotFoundError as exc:
+    raise SystemExit(f"examples/gym_train.py needs {exc.name}: pip install -e '.[gym]' "
+                     "stable-baselines3 sb3-contrib") from None
 
 from ata.runtime.heldout import EVAL_FIRST_SCENARIO
 from ata.experiment.runner import load_session, mean_ci, run_mission
@@ -113,16 +136,7 @@ def evaluate_ppo(model: MaskablePPO, norm: VecNormalize, scenarios: int) -> np.n
             return info["total"]
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    budget = parser.add_mutually_exclusive_group()
-    budget.add_argument("--minutes", type=float, default=5.0, help="wall-time training budget")
-    budget.add_argument("--steps", type=int, help="environment steps to train (rounded up to whole "
-                        "rollouts)")
-    parser.add_argument("--envs", type=int, default=32, help="environments stepped together")
-    parser.add_argument("--eval", type=int, default=200, help="held-out scenarios")
-    parser.add_argument("--seed", type=int, default=0, help="PPO's seed")
-    args = parser.parse_args()
+def main(args: argparse.Namespace) -> None:
     torch.set_num_threads(1)
 
     session = load_session(str(MISSION))
@@ -134,10 +148,13 @@ def main() -> None:
     # one rollout (and its update) at a time, until the budget is spent: a time-limited run and
     # `--steps` with its step count train the same policy
     rollout = model.n_steps * args.envs
-    t0 = time.perf_counter()
+    t0 = shown = time.perf_counter()
     while (model.num_timesteps < args.steps if args.steps is not None
            else time.perf_counter() - t0 < 60 * args.minutes):
         model.learn(total_timesteps=rollout, reset_num_timesteps=model.num_timesteps == 0)
+        if time.perf_counter() - shown > 30:          # a line every half minute while it trains
+            shown = time.perf_counter()
+            print(f"  {model.num_timesteps:,} steps, {(shown - t0) / 60:.1f} min", flush=True)
     wall = time.perf_counter() - t0
     steps = model.num_timesteps
     print(f"trained {steps:,} steps ({steps // n_epochs:,} episodes) in "
@@ -159,4 +176,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    main(ARGS)

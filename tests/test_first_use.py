@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from ata import hookimpl
 from ata.cli import app
 from ata.core.state import Allocation
 from ata.experiment.runner import BASELINE_MISSION
@@ -113,16 +114,12 @@ def code_block(doc: str, holding: str) -> str:
     return blocks[0]
 
 
-def test_the_round_robin_example_runs_as_written():
-    namespace: dict = {}
-    exec(code_block(PLUGINS_DOC, "class RoundRobin"), namespace)   # its own imports alone
-    assert namespace["Allocation"] is Allocation
-
-    class RoundRobin(namespace["RoundRobin"]):
-        def __init__(self, settings, mission):      # the factory signature; the doc shows hooks
-            pass
-
-    check_component("policy", RoundRobin)
+@pytest.mark.parametrize("kind, name", [("policy", "RoundRobin"),
+                                        ("condition", "EveryFifthEpoch")])
+def test_the_decision_examples_pass_the_check_as_written(kind, name):
+    namespace: dict = {"np": np, "hookimpl": hookimpl, "Allocation": Allocation}
+    exec(code_block(PLUGINS_DOC, f"class {name}"), namespace)
+    check_component(kind, namespace[name])
 
 
 def test_every_shared_column_is_defined():

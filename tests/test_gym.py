@@ -409,3 +409,11 @@ def test_a_forbidden_agent_action_is_taken_as_keep(session):
         env.step({"robot_9": 0})
     with pytest.raises(ValueError, match=r"action of robot_0 is 99; allowed: 0 \.\. 4"):
         env.step({"robot_0": 99})
+
+
+def test_without_the_extra_ata_gym_says_how_to_get_it():
+    # gymnasium hidden from a fresh interpreter: the import names the extra
+    code = ("import sys; sys.modules['gymnasium'] = None\n"
+            "try:\n    import ata.gym\nexcept ModuleNotFoundError as e:\n    print(e)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert "ata.gym needs the gym extra" in out.stdout and "pip install 'ata[gym]'" in out.stdout

@@ -17,7 +17,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Sequence
 
-import gymnasium
+try:
+    import gymnasium
+except ModuleNotFoundError as exc:        # the extra is not installed: say how to get it
+    raise ModuleNotFoundError(
+        f"ata.gym needs the gym extra ({exc.name} is not installed): pip install 'ata[gym]' "
+        "(from a checkout: pip install -e '.[gym]')", name=exc.name) from None
 
 from ata.experiment.runner import Session
 from ata.gym.centralised import CentralisedEnv, CentralisedVectorEnv, sample_masked
