@@ -178,10 +178,10 @@ def _read_one(path: str | Path) -> tuple[list[dict[str, Any]], list[str], list[t
     if path.is_dir():
         path = path / "results.csv"
     if not path.is_file():
-        raise MissionError("", None, "no such results file or training log: `ata report` reads "
-                           "an evaluation folder (results.csv, from `ata eval`), a run folder "
-                           "(`ata run`) or a training run folder (log.csv, from `ata train`)",
-                           file=str(given))
+        raise MissionError("", None, "no such results file or training log: this reads an "
+                           "evaluation folder (results.csv, from `ata eval`) or a run folder "
+                           "(`ata run`); `ata report` also a training run folder (log.csv, "
+                           "from `ata train`)", file=str(given))
     # utf-8-sig: a spreadsheet saves a byte-order mark before the first column's name (the
     # csv module reads its CRLF line ends as they are)
     with open(path, newline="", encoding="utf-8-sig") as f:
