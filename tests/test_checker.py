@@ -1,13 +1,11 @@
 """The plugin checker (ata.testing.check_component): built-ins pass, broken components fail,
 and so does a decision-maker that peeks at the world's future."""
 
-import inspect
-
 import numpy as np
 import pytest
 
+from _support import running_world
 from ata import hookimpl
-from ata.core.kernel import Simulation
 from ata.core.state import Allocation
 from ata.plugins.ata_hrl.components import AttentionITA, AuxReconstructor, CTRPolicy
 from ata.plugins.conditions import Always, Never, OnEvent
@@ -165,10 +163,7 @@ class PeeksThroughTheKernel:
 
     @hookimpl
     def ata_initial_allocation(self, ctx):
-        frame = inspect.currentframe()
-        while not isinstance(frame.f_locals.get("self"), Simulation):
-            frame = frame.f_back
-        world = frame.f_locals["self"].sim.rng
+        world = running_world().rng
         return outcome_allocation(ctx, world.uniform("tasks.outcome", 0, (ctx.sizes.tasks,)))
 
 
@@ -249,10 +244,7 @@ class ReconstructsFromTheOutcomes:
 
     @hookimpl
     def ata_reconstruct(self, sim, obs, inherent, out):
-        frame = inspect.currentframe()
-        while not isinstance(frame.f_locals.get("self"), Simulation):
-            frame = frame.f_back
-        tasks = frame.f_locals["self"].sim.groups["tasks"]
+        tasks = running_world().groups["tasks"]
         out["will_succeed"] = (tasks.outcome_u < 0.5)[..., None].astype(float)
 
 
@@ -272,10 +264,7 @@ class ForeseesFailures:
 
     @hookimpl
     def ata_should_reallocate(self, ctx):
-        frame = inspect.currentframe()
-        while not isinstance(frame.f_locals.get("self"), Simulation):
-            frame = frame.f_back
-        fail = frame.f_locals["self"].sim.groups["robots"].fail_time
+        fail = running_world().groups["robots"].fail_time
         soon = (fail > ctx.time) & (fail <= ctx.time + ctx.clock.epoch_s)
         return soon.any(axis=1)
 

@@ -5,12 +5,12 @@ global generator, naming the cause."""
 
 from __future__ import annotations
 
-import inspect
 from dataclasses import dataclass
 
 import numpy as np
 import pytest
 
+from _support import running_world
 from ata import hookimpl
 from ata.core.errors import ContractError
 from ata.core.kernel import Simulation
@@ -29,6 +29,18 @@ def session(*extra: str):
         "components.condition='always'", *extra])
 
 
+def started(policy_class, *slots):
+    """A simulation of `session()` with one instance of `policy_class` in `slots`, its first
+    epoch run."""
+    s = session()
+    policy = policy_class(GreedyPolicy.Settings(), s.mission)
+    sim = Simulation(s.mission, s.registry, [0, 1, 2],
+                     overrides={slot: policy for slot in slots})
+    sim.reset()
+    sim.step_epoch()
+    return sim
+
+
 class EditsInPlace(GreedyPolicy):
     """Reallocates by writing into the allocation in force and handing it back."""
 
@@ -39,12 +51,7 @@ class EditsInPlace(GreedyPolicy):
 
 
 def test_a_policy_editing_the_allocation_in_force_in_place_is_stopped():
-    s = session()
-    policy = EditsInPlace(GreedyPolicy.Settings(), s.mission)
-    sim = Simulation(s.mission, s.registry, [0, 1, 2],
-                     overrides={"initial": policy, "reallocation": policy})
-    sim.reset()
-    sim.step_epoch()
+    sim = started(EditsInPlace, "initial", "reallocation")
     before = sim.sim.allocation.stack().copy()
     with pytest.raises(ValueError, match="read-only"):
         sim.step_epoch()
@@ -68,12 +75,7 @@ class KeepsWhatItReturned(GreedyPolicy):
 
 
 def test_a_policy_editing_an_allocation_it_returned_changes_nothing_in_force():
-    s = session()
-    policy = KeepsWhatItReturned(GreedyPolicy.Settings(), s.mission)
-    sim = Simulation(s.mission, s.registry, [0, 1, 2],
-                     overrides={"initial": policy, "condition": policy})
-    sim.reset()
-    sim.step_epoch()
+    sim = started(KeepsWhatItReturned, "initial", "condition")
     before = sim.sim.allocation.stack().copy()
     assert (before[..., 0] != 0).any()
     sim.step_epoch()
@@ -186,10 +188,7 @@ class ReadsTheFatigueCurves:
 
     @hookimpl
     def ata_initial_allocation(self, ctx):
-        frame = inspect.currentframe()
-        while not isinstance(frame.f_locals.get("self"), Simulation):
-            frame = frame.f_back
-        onset = frame.f_locals["self"].sim.groups["humans"].fatigue_onset
+        onset = running_world().groups["humans"].fatigue_onset
         B, P = ctx.reallocatable.shape
         last = np.argmax(onset, axis=1)[:, None] * np.ones((1, P), dtype=np.int64)
         return Allocation(np.arange(B * P).reshape(B, P) % ctx.sizes.robots,

@@ -60,6 +60,24 @@ def build_component(registry: Register, mission: Mission, kind: str, name: str) 
     return component
 
 
+def refuse_world_hooks(pm: pluggy.PluginManager, deciders: list[tuple[str, Any]]) -> None:
+    """Raise a ContractError when a decision-maker (`deciders`: ("slot:name", component)
+    pairs) implements a hook of `pm` that would hand it the world (its state, its generator)."""
+    for hook_name in WORLD_HOOKS:
+        impls = [i.plugin for i in getattr(pm.hook, hook_name).get_hookimpls()]
+        for name, component in deciders:
+            if any(p is component for p in impls):
+                slot = name.split(":", 1)[0]
+                comp = getattr(component, "component_name", None) or type(component).__name__
+                instead = (" (it learns its episode's record and score through "
+                           "ata_episode_scored)") if hook_name == "ata_episode_end" else ""
+                raise ContractError(
+                    f"{slot} component {comp!r} implements {hook_name}, which "
+                    "hands it the world's state and generator: a decision-maker sees the "
+                    "scenario through its DecisionContext alone (a reconstructor through "
+                    f"ata_reconstruct; see docs/plugins.md){instead}")
+
+
 def _names(value: str | list[str]) -> list[str]:
     return value if isinstance(value, list) else [value]
 
@@ -135,22 +153,8 @@ class Simulation:
         self.shown: np.ndarray | None = None
 
     def _refuse_world_hooks(self, ordered: list[tuple[str, Any]]) -> None:
-        """Raise a ContractError when a component in a decision slot implements a hook that
-        would hand it the world (its state, its generator) before the episode ends."""
-        deciders = [(name, c) for name, c in ordered if name.split(":")[0] in DECISION_SLOTS]
-        for hook_name in WORLD_HOOKS:
-            impls = [i.plugin for i in getattr(self.pm.hook, hook_name).get_hookimpls()]
-            for name, component in deciders:
-                if any(p is component for p in impls):
-                    slot = name.split(":", 1)[0]
-                    comp = getattr(component, "component_name", None) or type(component).__name__
-                    instead = (" (it learns its episode's record and score through "
-                               "ata_episode_scored)") if hook_name == "ata_episode_end" else ""
-                    raise ContractError(
-                        f"{slot} component {comp!r} implements {hook_name}, which "
-                        "hands it the world's state and generator: a decision-maker sees the "
-                        "scenario through its DecisionContext alone (a reconstructor through "
-                        f"ata_reconstruct; see docs/plugins.md){instead}")
+        refuse_world_hooks(self.pm, [(n, c) for n, c in ordered
+                                     if n.split(":")[0] in DECISION_SLOTS])
 
     def _references(self, ordered: list[tuple[str, Any]]) -> list[str]:
         """The reference reconstructors of the mission; a ContractError when a component that

@@ -28,8 +28,9 @@ import pluggy
 
 from ata.core import hookspecs
 from ata.core.errors import ContractError, MissionError
-from ata.core.kernel import (DECISION_SLOTS, REFERENCE_HOOK, WORLD_HOOKS, build_component,
-                             is_reference)
+from ata.core.channel import read_only
+from ata.core.kernel import (DECISION_SLOTS, REFERENCE_HOOK, build_component, is_reference,
+                             refuse_world_hooks)
 from ata.core.mission import SLOT_HOOKS, SLOT_KINDS, Mission
 from ata.core.registry import collect_components, get_plugin_manager
 from ata.core.rng import StreamRNG
@@ -47,9 +48,7 @@ def _frozen(value: Any) -> Any:
     if value is None:
         return None
     if isinstance(value, np.ndarray):
-        out = np.array(value, copy=True)
-        out.flags.writeable = False
-        return out
+        return read_only(value)
     return value.frozen() if hasattr(value, "frozen") else value
 
 
@@ -117,16 +116,10 @@ class Decider:
 
     def _refuse(self, unique: list[tuple[str, Any]]) -> None:
         """The kernel's refusals, for the components the host's kernel never sees."""
-        for hook_name in (*WORLD_HOOKS, REFERENCE_HOOK):
-            impls = [i.plugin for i in getattr(self.pm.hook, hook_name).get_hookimpls()]
-            for name, component in unique:
-                if any(p is component for p in impls):
-                    slot, comp = name.split(":", 1)
-                    raise ContractError(f"{slot} component {comp!r} implements {hook_name}, "
-                                        "which hands it the world: a decision-maker sees the "
-                                        "scenario through its DecisionContext alone")
+        refuse_world_hooks(self.pm, unique)
+        impls = [i.plugin for i in getattr(self.pm.hook, REFERENCE_HOOK).get_hookimpls()]
         for name, component in unique:
-            if is_reference(component):
+            if any(p is component for p in impls) or is_reference(component):
                 raise ContractError(f"{name}: a reference reads the true state; --isolate "
                                     "runs methods, which never do")
 
