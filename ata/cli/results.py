@@ -1,0 +1,139 @@
+"""`ata report`, `ata compare` and `ata show`: what runs wrote, read."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+from ata.cli.common import (MarkdownOption, ResamplesOption, SetOption, _split, _split_or_none, app,
+                            user_errors)
+from ata.experiment import terminal
+from ata.experiment.terminal import console, escape, note
+
+
+@app.command()
+@user_errors
+def report(run_dir: List[Path] = typer.Argument(
+               ..., metavar="DIR...",
+               help="`ata eval` or `ata run` folders (several are read as one, a cell of a "
+                    "later one replacing the same cell of an earlier one; outputs go to the "
+                    "first), or one `ata train` run folder (its learning curves)."),
+           reference: Optional[str] = typer.Option(
+               None, "--reference", "-r", metavar="NAME",
+               help="The method the others are compared with in the tables (default: ATA-HRL "
+                    "if present, else the first method)."),
+           paired_reference: Optional[str] = typer.Option(
+               None, "--paired-reference", metavar="NAME",
+               help="The method subtracted in fig_paired, method - NAME (default: greedy if "
+                    "present, else the first method)."),
+           out: Optional[Path] = typer.Option(None, "--out", "-o", metavar="DIR",
+                                              help="Write here (default: the first DIR)."),
+           no_figures: bool = typer.Option(False, "--no-figures", help="Write no figures."),
+           markdown: bool = typer.Option(
+               False, "--markdown", help="Print the two tables of docs/RESULTS.md as Markdown "
+                                         "instead: every method's score, and the paired "
+                                         "differences of --pair (or of the suite's pairs)."),
+           pair: Optional[List[str]] = typer.Option(
+               None, "--pair", metavar="A,B", help="A paired difference A - B for --markdown "
+                                                   "(repeatable)."),
+           resamples: int = ResamplesOption) -> None:
+    """Tables (with bootstrap confidence intervals) and figures of an evaluation, or the
+    learning curves of a training run."""
+    from ata.core.errors import MissionError
+    from ata.experiment import curves
+    from ata.experiment import report as rep
+    from ata.experiment.results import read_results
+
+    if any(curves.is_training_folder(d) for d in run_dir):
+        if len(run_dir) > 1:
+            raise MissionError("", None, "a training run folder is reported alone: "
+                               "ata report RUN_DIR")
+        log, written = curves.write_curves(run_dir[0], out, not no_figures)
+        terminal.table(f"training log {log.path}", *curves.curves_rows(log))
+    elif markdown:
+        pairs = [tuple(_split(p)) for p in pair or []]
+        if any(len(p) != 2 for p in pairs):
+            raise MissionError("--pair", None, "names two methods: --pair A,B")
+        print(rep.results_markdown(read_results(run_dir), pairs or None, resamples), end="")
+        return
+    else:
+        result, written = rep.write_report(run_dir, reference, not no_figures, resamples,
+                                           paired_reference, out)
+        if result.results.replaced:
+            note("cells taken from a later folder: " + rep.replaced_text(result.results))
+        terminal.report_tables(result)
+    console.print("wrote " + ", ".join(escape(str(p)) for p in written), highlight=False)
+
+
+@app.command()
+@user_errors
+def compare(folders: List[Path] = typer.Argument(
+                ..., metavar="A [B]",
+                help="One `ata eval` folder (each method against --base), or two folders of "
+                     "`ata eval` or `ata run` (A - B, method by method)."),
+            column: Optional[List[str]] = typer.Option(
+                None, "--column", "-c", metavar="COL",
+                help="A results.csv column: score (the default), expected_score, "
+                     "reallocations, ... (repeatable)."),
+            base: Optional[str] = typer.Option(
+                None, "--base", metavar="METHOD",
+                help="The method subtracted: of A (default greedy, else the first), or of B."),
+            methods: Optional[str] = typer.Option(None, "--methods", metavar="NAME[,NAME]",
+                                                  help="Only these methods of A."),
+            power: bool = typer.Option(
+                False, "--power", help="The scenarios a paired 95% CI needs to clear 0, at "
+                                       "the difference that expected_score estimates."),
+            means: bool = typer.Option(False, "--means",
+                                       help="The columns' means per method and cell instead."),
+            markdown: bool = MarkdownOption,
+            resamples: int = ResamplesOption) -> None:
+    """Paired differences on the same scenarios, with bootstrap 95% CIs, on any results column;
+    the scenarios a CI needs to clear 0 (--power); or column means (--means)."""
+    from ata.core.errors import MissionError
+    from ata.experiment import compare as cmp
+    from ata.experiment.results import read_results
+
+    if len(folders) > 2:
+        raise MissionError("", None, "compares one folder (methods against --base) or two "
+                           "(A - B): ata compare A [B]")
+    if power and means:
+        raise MissionError("--means", None, "give --power or --means, not both")
+    results = [read_results(f) for f in folders]
+    columns = list(dict.fromkeys(column or ["score"]))
+    if means:
+        tables = cmp.mean_tables([(str(f), r) for f, r in zip(folders, results)], columns,
+                                 _split_or_none(methods))
+    else:
+        tables = cmp.compare(results[0], results[1] if len(results) > 1 else None, columns,
+                             base=base, methods=_split_or_none(methods), power=power,
+                             resamples=resamples)
+    if markdown:
+        print(cmp.markdown(tables), end="")
+    for table in [] if markdown else tables:
+        terminal.table(table.title, table.header, table.rows)
+
+@app.command()
+@user_errors
+def show(target: Optional[str] = typer.Argument(
+             None, metavar="RUN_DIR|MISSION",
+             help="A run folder (read through its mission.resolved.toml) or a mission file. "
+                  "Default: the built-in mission."),
+         scenario: Optional[int] = typer.Option(
+             None, "--scenario", "-n", metavar="N",
+             help="The scenario id to replay (default: the mission's first)."),
+         set_: Optional[List[str]] = SetOption,
+         out: Optional[Path] = typer.Option(
+             None, "--out", "-o", metavar="DIR",
+             help="Folder for the pictures (default: RUN_DIR/show-N, or runs/show-NAME-N)."),
+         animate: bool = typer.Option(
+             False, "--animate", help="Also write the map through time as an animated GIF "
+                                      "(show_map.gif, one frame per epoch).")) -> None:
+    """Replay one scenario with a recorded trace and draw its map, a timeline per member and
+    the humans' states (show_map, show_timeline, show_humans; PNG and SVG), and with --animate
+    the map through time (show_map.gif); see docs/show.md."""
+    from ata.viz.show import show as show_scenario
+
+    terminal.show_summary(show_scenario(target, scenario, list(set_ or []), out, animate,
+                                        progress=terminal.progress_bar(False)))

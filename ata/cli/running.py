@@ -1,0 +1,166 @@
+"""`ata run`, `ata eval` and `ata check`: missions and suites run."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+from ata.cli.common import (AddressOption, ForceOption, IsolateOption, PluginsOption, QuietOption,
+                            SetOption, TimeoutOption, _split, _split_or_none, app, user_errors)
+from ata.experiment import terminal
+from ata.experiment.terminal import console, escape, note
+
+
+@app.command()
+@user_errors
+def run(mission: Optional[str] = typer.Argument(
+            None, metavar="MISSION", help="Mission file (TOML) or builtin:NAME. Default: the "
+                                          "built-in mission, setting (a), medium uncertainty."),
+        set_: Optional[List[str]] = SetOption,
+        plugins: Optional[str] = PluginsOption,
+        out: Optional[Path] = typer.Option(None, "--out", "-o", metavar="DIR",
+                                           help="Run folder (default: runs/NAME-TIME)."),
+        workers: Optional[int] = typer.Option(None, "--workers", "-w", min=1, metavar="N",
+                                              help="Worker processes (default: the mission's)."),
+        executor: Optional[str] = typer.Option(None, "--executor", "-e", metavar="NAME",
+                                               help="serial, process or ray (default: serial "
+                                                    "for one worker, else process)."),
+        address: Optional[str] = AddressOption,
+        chunk_size: Optional[int] = typer.Option(
+            None, "--chunk-size", min=1, metavar="N",
+            help="Scenarios per batch at most (default 100; mission.batch_size caps it too): "
+                 "each batch is saved as it ends, bigger ones step faster."),
+        cache: Optional[Path] = typer.Option(None, "--cache", metavar="DIR",
+                                             help="Cache folder for results that depend on the "
+                                                  "scenario alone (MILP initial allocations; "
+                                                  "default: none)."),
+        force: bool = ForceOption,
+        quiet: bool = QuietOption,
+        isolate: bool = IsolateOption,
+        decision_timeout: float = TimeoutOption) -> None:
+    """Run a mission and print its summary; write results beside the resolved mission.
+
+    The run is a plan of one job on the chunked runner of `ata eval`. Each finished batch is
+    saved in the run folder as it ends: rerun the same command with the same --out to go on
+    after an interruption (only what is missing runs)."""
+    from ata.experiment import execute, runner
+    from ata.experiment.isolate import require_sandbox
+
+    iso = require_sandbox(decision_timeout) if isolate else None
+    session = runner.load_session(mission, set_ or [], _split(plugins))
+    m = session.mission
+    workers = workers or m.settings.workers
+    # the components are built (checkpoints read) before any folder is made or scenario runs
+    runner.build_once(m, session.registry, iso)
+    plan = runner.mission_plan(session, workers, chunk_size or runner.RUN_CHUNK)
+    out_dir, result = execute.run_plan(
+        plan, lambda done: (done.out_dir, runner.write_done(session, done)), out,
+        executor=executor or ("serial" if workers <= 1 else "process"), workers=workers,
+        address=address, cache=cache, force=force, notify=note,
+        progress=terminal.progress_bar(quiet), isolate=iso)
+    terminal.key_values(f"{m.display_name()}: {m.settings.name}",
+                        runner.summary_rows(session, result))
+    terminal.warn(result.warnings)
+    console.print(f"results: {escape(str(out_dir))}", highlight=False)
+
+
+@app.command("eval")
+@user_errors
+def eval_(paths: List[str] = typer.Argument(
+              ..., metavar="FILE",
+              help="Suite files (a suite table and method tables) or mission files; see "
+                   "docs/evaluation.md."),
+          out: Optional[Path] = typer.Option(None, "--out", "-o", metavar="DIR",
+                                             help="Output folder (default: runs/eval-NAME-TIME)."),
+          executor: str = typer.Option("process", "--executor", "-e", metavar="NAME",
+                                       help="serial, process (local worker processes) or ray."),
+          workers: Optional[int] = typer.Option(None, "--workers", "-w", min=1, metavar="N",
+                                                help="Worker processes (process: default one "
+                                                     "per core) or local Ray CPUs."),
+          address: Optional[str] = AddressOption,
+          chunk_size: Optional[int] = typer.Option(
+              None, "--chunk-size", min=1, metavar="N",
+              help="Scenarios per work unit (default 250): each unit is saved as it ends, "
+                   "bigger ones run faster."),
+          scenarios: Optional[int] = typer.Option(None, "--scenarios", "-n", min=1, metavar="N",
+                                                  help="Scenarios per (method, setting, level) "
+                                                       "(default: the suite's, else 500)."),
+          seed: Optional[int] = typer.Option(None, "--seed", min=0, metavar="N",
+                                             help="Root seed (default: the suite's, else 0)."),
+          methods: Optional[str] = typer.Option(None, "--methods", metavar="NAME[,NAME]",
+                                                help="Run only these methods."),
+          settings: Optional[str] = typer.Option(None, "--settings", metavar="S[,S]",
+                                                 help="Run only these team settings."),
+          levels: Optional[str] = typer.Option(None, "--levels", metavar="LEVEL[,LEVEL]",
+                                               help="Run only these uncertainty levels."),
+          cache: Optional[Path] = typer.Option(None, "--cache", metavar="DIR",
+                                               help="Cache folder for results that depend on "
+                                                    "the scenario alone (MILP initial "
+                                                    "allocations); default $ATA_CACHE, else "
+                                                    "~/.cache/ata."),
+          no_cache: bool = typer.Option(False, "--no-cache", help="Use no cache."),
+          force: bool = ForceOption,
+          quiet: bool = QuietOption,
+          isolate: bool = IsolateOption,
+          decision_timeout: float = TimeoutOption) -> None:
+    """Evaluate methods on held-out scenarios across team settings and uncertainty levels.
+
+    Each finished work unit is saved in the output folder as it ends: rerun the same command
+    with the same --out to go on after an interruption (only what is missing runs)."""
+    from ata.core.errors import MissionError
+    from ata.experiment import evaluate as ev
+    from ata.experiment import execute
+    from ata.experiment import report as rep
+    from ata.experiment.isolate import require_sandbox
+    from ata.experiment.results import read_results
+    from ata.runtime.executors import EXECUTORS
+
+    iso = require_sandbox(decision_timeout) if isolate else None
+    if executor not in EXECUTORS:
+        raise MissionError("--executor", None, f"unknown executor {executor!r}; choose one of "
+                           + ", ".join(EXECUTORS))
+    chunk_size = chunk_size or ev.DEFAULT_CHUNK
+    # every job is built and validated before any scenario runs or anything is written
+    suites, jobs = ev.plan(list(paths), scenarios=scenarios, seed=seed,
+                           methods=_split_or_none(methods), settings=_split_or_none(settings),
+                           levels=_split_or_none(levels), isolate=iso)
+    cache_dir = None if no_cache else (cache or ev.default_cache_dir())
+    plan = ev.eval_plan(suites, jobs, chunk_size, describe={
+        "paths": list(paths), "jobs": len(jobs), "chunk_size": chunk_size})
+    arguments = {"paths": list(paths), "chunk_size": chunk_size, "scenarios": scenarios,
+                 "seed": seed, "methods": methods, "settings": settings, "levels": levels,
+                 "cache": str(cache_dir) if cache_dir else None,
+                 "first_scenario": ev.EVAL_FIRST_SCENARIO,
+                 "isolate": iso.key() if iso else None}
+    out_dir, result = execute.run_plan(
+        plan, lambda done: (done.out_dir, ev.write_done(suites, jobs, chunk_size, arguments,
+                                                        done)),
+        out, executor=executor, workers=workers, address=address, cache=cache_dir, force=force,
+        notify=note, progress=terminal.progress_bar(quiet), isolate=iso)
+    terminal.report_tables(rep.summarize(read_results(out_dir)))
+    terminal.warn(result.warnings)
+    console.print(f"{len(result.rows)} rows in {result.wall_s:.1f} s; results: "
+                  f"{escape(str(out_dir))} (ata report {escape(str(out_dir))} for report.md and "
+                  "figures)", highlight=False)
+
+@app.command()
+@user_errors
+def check(mission: str = typer.Argument(..., metavar="MISSION", help="Mission file (TOML)."),
+          set_: Optional[List[str]] = SetOption,
+          plugins: Optional[str] = PluginsOption,
+          show: bool = typer.Option(False, "--show", help="Print the resolved mission.")) -> None:
+    """Validate a mission file without running it."""
+    from ata.experiment import runner
+
+    session = runner.load_session(mission, set_ or [], _split(plugins))
+    m = session.mission
+    runner.build_once(m, session.registry)   # a component that cannot fill its slot fails
+    console.print(f"[green]ok[/]: {escape(mission)}: setting {m.settings.setting} "
+                  f"({m.sizes.humans} humans, {m.sizes.robots} robots, {m.sizes.tasks} POIs), "
+                  f"{m.settings.scenarios} scenarios, {m.settings.uncertainty} uncertainty "
+                  f"(fatigue variance {m.fatigue_variance}, event probability "
+                  f"{m.event_probability})", highlight=False)
+    if show:
+        console.print(m.to_toml(), highlight=False, markup=False)
