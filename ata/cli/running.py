@@ -49,7 +49,7 @@ def run(mission: Optional[str] = typer.Argument(
     from ata.experiment.isolate import require_sandbox
 
     iso = require_sandbox(decision_timeout) if isolate else None
-    session = runner.load_session(mission, set_ or [], _split(plugins))
+    session = runner.load_session(mission, set_ or [], _split(plugins), isolate=iso)
     m = session.mission
     workers = workers or m.settings.workers
     # the components are built (checkpoints read) before any folder is made or scenario runs

@@ -208,6 +208,11 @@ class Register:
         return sorted(n for k, n in self.components if k == kind)
 
     @property
+    def pm(self) -> pluggy.PluginManager | None:
+        """The plugin manager the components came from (None for a bare registry)."""
+        return self._pm
+
+    @property
     def broken(self) -> list["BrokenPlugin"]:
         """The third-party plugins left out because they failed to load (`broken_plugins`)."""
         return broken_plugins(self._pm) if self._pm is not None else []

@@ -115,6 +115,8 @@ def build_settings(cls: type, table: dict[str, Any] | None, where: str) -> Any:
 
     :param where: the table's name in the mission file, for error messages ("[greedy]").
     """
+    if hasattr(cls, "from_table"):       # settings validated elsewhere (--isolate's remote ones)
+        return cls.from_table(table, where)
     table = dict(table or {})
     fields = {f.name: f for f in dataclasses.fields(cls)}
     unknown = sorted(set(table) - set(fields))
@@ -135,6 +137,8 @@ def build_settings(cls: type, table: dict[str, Any] | None, where: str) -> Any:
 
 def settings_dict(obj: Any) -> dict[str, Any]:
     """The settings as a TOML-ready dict (None values left out: TOML has no null)."""
+    if hasattr(obj, "as_dict"):         # settings validated elsewhere (--isolate's remote ones)
+        return {k: v for k, v in obj.as_dict().items() if v is not None}
     return {k: v for k, v in dataclasses.asdict(obj).items() if v is not None}
 
 

@@ -135,7 +135,7 @@ def plan(paths: list[str], *, scenarios: int | None = None, seed: int | None = N
                                        f"({', '.join(own_settings)})", file=suite.path)
             for st in _pick(own_settings, settings):
                 for lv in _pick(own_levels, levels):
-                    job = _job(suite, spec, st, lv, scenarios, seed)
+                    job = _job(suite, spec, st, lv, scenarios, seed, isolate)
                     if (settings and job.setting not in settings) or \
                             (levels and job.level not in levels):
                         continue
@@ -165,7 +165,7 @@ def _context(exc: MissionError, source: str, method: str, setting: str | None,
 
 
 def _job(suite: Suite, spec: MethodSpec, setting: str | None, level: str | None,
-         scenarios: int | None, seed: int | None) -> Job:
+         scenarios: int | None, seed: int | None, isolate: Isolation | None = None) -> Job:
     overrides = list(spec.overrides)
     if setting is not None:
         overrides += spec.per_setting.get(setting, [])
@@ -181,7 +181,8 @@ def _job(suite: Suite, spec: MethodSpec, setting: str | None, level: str | None,
     root = f"'{root}'" if isinstance(root, str) else int(root)    # 'env:NAME': secret
     overrides += [f"mission.seed={root}", f"mission.first_scenario={EVAL_FIRST_SCENARIO}"]
     try:
-        session = load_session(spec.mission, overrides, spec.plugins or None)
+        session = load_session(spec.mission, overrides, spec.plugins or None,
+                               isolate=isolate)
     except MissionError as exc:
         raise _context(exc, suite.path, spec.name, setting, level) from None
     m = session.mission

@@ -37,6 +37,7 @@ from ata.core.errors import ContractError, MissionError
 from ata.core.kernel import DECISION_SLOTS, is_reference
 from ata.core.mission import SLOT_KINDS, Mission
 from ata.core.registry import Register
+from ata.experiment.remote import RemoteComponent, code_locations
 from ata.runtime import sandbox
 from ata.runtime.frames import FrameError, HostPipe, PeerGone, PeerTimeout
 from ata.runtime.inputs import resolve
@@ -100,6 +101,15 @@ def method_code(mission: Mission, registry: Register
         value = getattr(mission.slots, slot)
         for name in value if isinstance(value, list) else [value]:
             info = registry.get(SLOT_KINDS[slot], name, "[components]")
+            if isinstance(info.factory, RemoteComponent):
+                # a method the host never imported: the process loads every plugin, and sees
+                # every third-party package's code (found without running it)
+                more_binds, more_paths = code_locations()
+                binds += [b for b in more_binds if not _under(b, shown)]
+                shown += more_binds
+                paths += more_paths
+                only = False
+                continue
             if slot == "reconstructors" and is_reference(info.factory):
                 raise MissionError("--isolate", None, f"reconstructor {name!r} is a reference "
                                    "that reads the true state, not a method: run it without "
@@ -131,6 +141,27 @@ def method_code(mission: Mission, registry: Register
                             binds.append((os.path.realpath(where), where))
     return (list(dict.fromkeys(modules)), list(dict.fromkeys(binds)),
             list(dict.fromkeys(paths)), only)
+
+
+RESOLVE = "resolving the method"
+
+
+def resolver(isolation: Isolation):
+    """The `resolve` of `ata.experiment.remote.isolated_registry`: a sandboxed process, started
+    for it and ended after, that loads every plugin, validates the mission and answers the
+    resolved settings of the components the host did not load."""
+    def resolve(raw: dict[str, Any], source: str, wanted: list[tuple[str, str]]) -> Any:
+        binds, paths = code_locations()
+        process = DecisionProcess(_spare_key(isolation) + ("resolve",), None, ([], [], True),
+                                  binds, isolation)
+        try:
+            header, _ = process.call({"op": "resolve", "mission": raw, "source": source,
+                                      "components": wanted, "paths": paths},
+                                     isolation.startup_timeout_s, RESOLVE)
+        finally:
+            process.close()
+        return header
+    return resolve
 
 
 # -- the process -------------------------------------------------------------------------------
@@ -275,9 +306,10 @@ class DecisionProcess:
         if "error" in header:
             self.kill()
             text = str(header.get("error"))[-20000:]
-            if header.get("kind") == "MissionError" and what == "start":
-                raise MissionError("--isolate", None, f"the decision process could not build "
-                                   f"the method: {text}")
+            if header.get("kind") == "MissionError" and what in ("start", RESOLVE):
+                raise MissionError("--isolate", None, f"the decision process could not "
+                                   f"{'build' if what == 'start' else 'load'} the method: "
+                                   f"{text}")
             raise ChildFailed(f"{what} failed in the decision process (sandboxed): {text}")
 
     def _failed(self, what: str, exc: Exception | None = None) -> None:

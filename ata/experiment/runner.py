@@ -90,8 +90,11 @@ def mission_file(spec: str | Path | None) -> str:
 
 
 def load_session(path: str | None = None, overrides: list[str] | None = None,
-                 plugins: list[str] | None = None, extra: tuple = ()) -> Session:
-    """Read (or take the built-in) mission, load the plugins it needs, and validate it."""
+                 plugins: list[str] | None = None, extra: tuple = (),
+                 isolate: Isolation | None = None) -> Session:
+    """Read (or take the built-in) mission, load the plugins it needs, and validate it. With
+    `isolate`, no third-party method is imported here: a sandboxed process validates it
+    (`ata.experiment.remote`)."""
     source = mission_file(path)
     raw = mission_mod.read_toml(source)
     raw = mission_mod.apply_overrides(raw, overrides or [])   # its errors name --set
@@ -100,8 +103,14 @@ def load_session(path: str | None = None, overrides: list[str] | None = None,
     optional = list(dict.fromkeys((plugins or []) + mission_mod.requested_plugins(raw)))
     if plugins:
         raw.setdefault("mission", {})["plugins"] = optional
-    pm = get_plugin_manager(optional=optional, extra=extra)
-    registry = collect_components(pm)
+    if isolate is not None and not extra:
+        from ata.experiment.isolate import resolver
+        from ata.experiment.remote import isolated_registry
+        registry = isolated_registry(raw, optional, source, resolver(isolate))
+        pm = registry.pm
+    else:
+        pm = get_plugin_manager(optional=optional, extra=extra)
+        registry = collect_components(pm)
     mission = mission_mod.validate(raw, registry, source=source, overrides=overrides or [])
     return Session(mission=mission, registry=registry, pm=pm)
 

@@ -31,9 +31,10 @@ from ata.core.errors import ContractError, MissionError
 from ata.core.channel import read_only
 from ata.core.kernel import (DECISION_SLOTS, REFERENCE_HOOK, build_component, is_reference,
                              refuse_world_hooks)
-from ata.core.mission import SLOT_HOOKS, SLOT_KINDS, Mission
+from ata.core.mission import SLOT_HOOKS, SLOT_KINDS, Mission, validate
 from ata.core.registry import collect_components, get_plugin_manager
 from ata.core.rng import StreamRNG
+from ata.core.settings import settings_dict
 from ata.core.state import Allocation, DecisionContext, DecisionView, EpisodeOutcome
 from ata.runtime.frames import child_recv, child_send
 
@@ -74,8 +75,8 @@ class Decider:
     """The decision components of one batch and what they have been shown so far."""
 
     def __init__(self, mission: Mission, modules: list[str], only: bool):
-        self.mission = mission
         registry = collect_components(plugins(mission, modules, only))
+        self.mission = mission = realize(mission, registry)
         built: dict[str, Any] = {}
         ordered: list[tuple[str, Any]] = []
         for slot in DECISION_SLOTS:
@@ -185,6 +186,38 @@ class Decider:
         raise ValueError(f"unknown request {op!r}")
 
 
+def realize(mission: Mission, registry: Any) -> Mission:
+    """The mission with the real settings of the components the host knows only by their
+    resolved values (`ata.experiment.remote`): validated again here, from its resolved form,
+    by the plugins that provide them; still without the root seed."""
+    if not any(getattr(s, "as_dict", None) for s in mission.component_settings.values()):
+        return mission
+    raw = mission.resolved()
+    raw["mission"]["seed"] = 0
+    return validate(raw, registry, source=mission.source).public()
+
+
+def resolve(req: dict[str, Any]) -> dict[str, Any]:
+    """The host's question of `ata.experiment.remote`: the resolved settings of the components
+    it did not load. Every plugin is loaded here (never in the host) and the whole mission is
+    validated, as a worker would; the answer is plain values."""
+    raw, wanted = req["mission"], [tuple(x) for x in req["components"]]
+    plugins_ = get_plugin_manager(optional=[p for p in raw.get("mission", {}).get("plugins", [])
+                                            if isinstance(p, str)])
+    registry = collect_components(plugins_)
+    mission = validate(raw, registry, source=req.get("source", "<isolated>"))
+    out = []
+    for kind, name in wanted:
+        info = registry.get(kind, name, "[components]")
+        if is_reference(info.factory):
+            raise MissionError("--isolate", None, f"{kind} {name!r} is a reference that reads "
+                               "the true state, not a method: run it without --isolate")
+        st = mission.component_settings.get(name)
+        out.append({"kind": kind, "name": name, "plugin": info.plugin,
+                    "values": None if st is None else settings_dict(st)})
+    return {"components": out}
+
+
 def serve(fd_in: int, fd_out: int) -> None:
     """Answer requests until the host closes the channel (or says close)."""
     decider: Decider | None = None
@@ -193,6 +226,10 @@ def serve(fd_in: int, fd_out: int) -> None:
         if req is None or req.get("op") == "close":
             return
         try:
+            if req["op"] == "resolve":
+                sys.path[:0] = req.get("paths", [])
+                child_send(fd_out, resolve(req))
+                continue
             if req["op"] == "init":
                 sys.path[:0] = req.get("paths", [])
                 for name in req.get("modules", []):

@@ -1,0 +1,250 @@
+"""`--isolate` with a method from another package: the host never imports the method's code.
+
+Under `--isolate` the host (the process with the world and the root seed) loads ata's own
+plugins and the third-party plugins *declared* (entry-point group ``ata.components``) to provide
+a world component the mission names; nothing else of a third-party package is imported there,
+not even to read a settings class. A decision component that ata's own plugins do not provide is
+a *remote* component: a sandboxed process (`ata.runtime.decider`, op ``resolve``) loads every
+plugin, validates the mission as a worker would, and answers each remote component's resolved
+settings as plain values. The host then stands a `RemoteComponent` in its registry for each: its
+settings (a `RemoteSettings`) are those values, recorded in the resolved mission and the plan
+key as any component's are; building one raises (it is built in the decision process only).
+
+What the host takes from the sandboxed process is data, checked here: names it asked for, of the
+kinds it asked for, values TOML can write. Which code the decision process may see (the folders
+of the third-party packages and their distribution records) is found here from the installed
+metadata and `importlib.util.find_spec` of a top-level name, which runs none of the package's
+code.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import math
+import os
+from dataclasses import dataclass
+from importlib import metadata
+from typing import Any
+
+from ata.core.errors import ContractError, MissionError
+from ata.core.kernel import DECISION_SLOTS
+from ata.core.mission import SLOT_KINDS, TRAINER_SLOT
+from ata.core.registry import (COMPONENTS_GROUP, THIRD_PARTY_GROUP, ComponentInfo, Register,
+                               collect_components, declared_components, get_plugin_manager)
+
+
+@dataclass(frozen=True)
+class RemoteSettings:
+    """The settings of a component that lives in the decision process: the values it resolved
+    there (None: the component takes no settings), with what the host's registry needs to
+    stand the component in again in a worker process."""
+
+    kind: str
+    name: str
+    plugin: str
+    dist: str
+    values_json: str | None
+
+    @property
+    def values(self) -> dict[str, Any] | None:
+        return None if self.values_json is None else json.loads(self.values_json)
+
+    def as_dict(self) -> dict[str, Any]:
+        """What the resolved mission writes for it (`ata.core.settings.settings_dict`)."""
+        return self.values or {}
+
+
+class _RemoteSettingsClass:
+    """A remote component's ``Settings``: it takes the table the decision process validated."""
+
+    def __init__(self, settings: RemoteSettings):
+        self.settings = settings
+
+    def from_table(self, table: dict[str, Any] | None, where: str) -> RemoteSettings:
+        return self.settings
+
+
+class RemoteComponent:
+    """Stands in the host's registry for a decision component built in the decision process."""
+
+    def __init__(self, settings: RemoteSettings):
+        self.remote = settings
+        self.Settings = _RemoteSettingsClass(settings)
+        self.__name__ = self.__qualname__ = f"RemoteComponent[{settings.name}]"
+        self.__module__ = settings.plugin
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        raise ContractError(f"{self.remote.kind} {self.remote.name!r} runs in the sandboxed "
+                            "decision process only (--isolate)")
+
+
+def _third_party(value: str) -> bool:
+    module = value.split(":")[0]
+    return module != "ata" and not module.startswith("ata.")
+
+
+def _entry_points() -> list[tuple[metadata.EntryPoint, Any]]:
+    out = []
+    for dist in metadata.distributions():
+        for ep in dist.entry_points:
+            if ep.group in (THIRD_PARTY_GROUP, COMPONENTS_GROUP) and _third_party(ep.value):
+                out.append((ep, dist))
+    return out
+
+
+def code_locations() -> tuple[list[str], list[str]]:
+    """(paths to show read-only, folders to put on sys.path) for every third-party plugin
+    package, found without running any of it: its package folder (or module file) by
+    `find_spec` of its top-level name, and its distribution record (which holds its entry
+    points)."""
+    binds, paths = [], []
+    for ep, dist in _entry_points():
+        top = ep.value.split(":")[0].split(".")[0]
+        try:
+            spec = importlib.util.find_spec(top)
+        except (ImportError, ValueError):
+            spec = None
+        if spec is not None:
+            where = list(spec.submodule_search_locations or []) or \
+                ([spec.origin] if spec.origin else [])
+            for w in where:
+                w = os.path.realpath(w)
+                if os.path.exists(w):
+                    binds.append(w)
+                    paths.append(os.path.dirname(w))
+        record = getattr(dist, "_path", None)         # a PathDistribution's .dist-info folder
+        if record is not None and os.path.isdir(str(record)):
+            binds.append(os.path.realpath(str(record)))
+            paths.append(os.path.dirname(os.path.realpath(str(record))))
+    return list(dict.fromkeys(binds)), list(dict.fromkeys(paths))
+
+
+def _names(raw: dict[str, Any]) -> list[tuple[str, str, str]]:
+    """(slot, kind, name) of every component the raw mission's [components] names."""
+    table = raw.get("components")
+    table = table if isinstance(table, dict) else {}
+    out = []
+    for slot, kind in [*SLOT_KINDS.items(), TRAINER_SLOT]:
+        value = table.get(slot)
+        for name in value if isinstance(value, list) else [value]:
+            if isinstance(name, str):
+                out.append((slot, kind, name))
+    return out
+
+
+def _own_registry(optional: list[str]) -> Register:
+    """The registry of ata's own plugins and of the third-party plugins declared to provide a
+    world component: no other third-party plugin is loaded (entry points are not walked)."""
+    return collect_components(get_plugin_manager(optional=optional, entry_points=False))
+
+
+def isolated_registry(raw: dict[str, Any], optional: list[str], source: str,
+                      resolve: Any) -> Register:
+    """The host's registry for a mission run under --isolate (see the module's text).
+
+    :param resolve: called with (raw mission without its seed, source, [(kind, name)]) for the
+        remote components; returns the sandboxed process's answer (`ata.runtime.decider`).
+    """
+    registry = _own_registry(optional)
+    declared = declared_components()
+    remote: list[tuple[str, str]] = []
+    world: set[str] = set()
+    for slot, kind, name in _names(raw):
+        if (kind, name) in registry.components:
+            continue
+        module = declared.get((kind, name))
+        if slot in DECISION_SLOTS or slot == TRAINER_SLOT[0]:
+            if module is not None and not _third_party(module):
+                continue                          # ata's own learned methods load lazily
+            remote.append((kind, name))
+        elif module is None:
+            raise MissionError("[components]", slot, f"--isolate loads no third-party code "
+                               f"in the world's process unless it is declared: {kind} "
+                               f"{name!r} needs an entry point {kind}.{name} = \"MODULE\" in "
+                               f"the group {COMPONENTS_GROUP!r} of its package "
+                               "(docs/plugins.md)")
+        elif _third_party(module):
+            world.add(_top(module))
+    if not remote:
+        return registry
+    public = json.loads(json.dumps(raw, default=str))
+    public.setdefault("mission", {})["seed"] = 0           # the root seed never leaves the host
+    answer = resolve(public, source, remote)
+    _stand_in(registry, answer, remote)
+    for kind, name in remote:
+        package = _top(_module_of(registry.components[(kind, name)].plugin))
+        if package in world:
+            raise MissionError("[components]", None, f"--isolate cannot keep {kind} {name!r} "
+                               f"apart from the world: its package {package!r} also provides "
+                               "a world component of the mission, which runs in the world's "
+                               "process")
+    return registry
+
+
+def _top(module: str) -> str:
+    return module.split(":")[0].split(".")[0]
+
+
+def _module_of(plugin: str) -> str:
+    """The module of a plugin named by its entry point's name (or a module already)."""
+    for ep, _ in _entry_points():
+        if plugin == ep.name:
+            return ep.value
+    return plugin
+
+
+def _stand_in(registry: Register, answer: Any, remote: list[tuple[str, str]]) -> None:
+    """Check the decision process's answer and put a `RemoteComponent` in the registry for each
+    remote component."""
+    items = answer.get("components") if isinstance(answer, dict) else None
+    if not isinstance(items, list) or len(items) != len(remote):
+        raise ContractError("the decision process answered the settings of other components "
+                            "than it was asked for")
+    for (kind, name), item in zip(remote, items):
+        if not isinstance(item, dict) or (item.get("kind"), item.get("name")) != (kind, name):
+            raise ContractError(f"the decision process did not resolve {kind} {name!r}")
+        values = item.get("values")
+        if values is not None and not (isinstance(values, dict) and _plain(values)):
+            raise ContractError(f"the decision process gave settings of {name!r} that are not "
+                                "plain values")
+        plugin, dist = str(item.get("plugin", "?"))[:200], _dist_of(str(item.get("plugin")))
+        settings = RemoteSettings(kind, name, plugin, dist,
+                                  None if values is None else json.dumps(values, sort_keys=True))
+        registry.components[(kind, name)] = ComponentInfo(kind, name, RemoteComponent(settings),
+                                                          plugin, dist)
+
+
+def _plain(value: Any, depth: int = 0) -> bool:
+    if depth > 16:
+        return False
+    if isinstance(value, dict):
+        return all(isinstance(k, str) and _plain(v, depth + 1) for k, v in value.items())
+    if isinstance(value, list):
+        return all(_plain(v, depth + 1) for v in value)
+    if isinstance(value, float):
+        return math.isfinite(value)
+    return isinstance(value, (str, int, bool))
+
+
+def _dist_of(plugin: str) -> str:
+    """The distribution that declares `plugin` (an entry point's name or module), from the
+    installed metadata: not from what the decision process says."""
+    for ep, dist in _entry_points():
+        if plugin in (ep.name, ep.value):
+            return f"{dist.metadata['name']} {dist.version}"
+    return "?"
+
+
+def worker_registry(mission: Any) -> Register | None:
+    """A worker's registry for a mission with remote components (None for one without): ata's
+    own plugins, the declared world plugins, and a `RemoteComponent` for each remote one."""
+    remote = [s for s in mission.component_settings.values() if isinstance(s, RemoteSettings)]
+    if not remote:
+        return None
+    registry = _own_registry(list(mission.settings.plugins))
+    for s in remote:
+        registry.components[(s.kind, s.name)] = ComponentInfo(s.kind, s.name,
+                                                              RemoteComponent(s), s.plugin,
+                                                              s.dist)
+    return registry

@@ -1,0 +1,126 @@
+"""`--isolate` with a method from an installed package: the world's process never imports it.
+
+The package here is installed the way pip leaves one (a package folder and a .dist-info record
+with its entry points, on sys.path); its import-time code records where it ran. Its settings are
+validated in the sandboxed process, the host records them, and the rows are those of the same
+method run in-process."""
+
+from __future__ import annotations
+
+import os
+import sys
+import uuid
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ata.core.errors import MissionError
+from ata.experiment import isolate
+from ata.experiment.runner import load_session
+from ata.experiment.units import Unit, run_batch, run_unit, torch_one_thread
+from ata.runtime import sandbox
+
+NO_SANDBOX = sandbox.unavailable()
+pytestmark = pytest.mark.skipif(NO_SANDBOX is not None, reason=f"needs a sandbox: {NO_SANDBOX}")
+SHORT = ["mission.scenarios=3", "mission.batch_size=3", "mission.horizon_s=600"]
+
+PLUGIN = '''
+import os
+os.environ["{marker}"] = "imported in process %d" % os.getpid()
+
+from dataclasses import dataclass
+
+from ata import hookimpl
+from ata.core.settings import param
+from ata.plugins.policies.greedy import GreedyPolicy
+
+
+@dataclass
+class Settings:
+    shift: int = param(0, min=0, help="unused: a setting to validate")
+
+
+class Rotated(GreedyPolicy):
+    Settings = Settings
+
+    def __init__(self, settings, mission):
+        super().__init__(GreedyPolicy.Settings(), mission)
+        self.shift = settings.shift
+
+
+class Noise:
+    """An injector (a world component) this package does not declare."""
+
+    @hookimpl
+    def ata_inject(self, sim):
+        pass
+
+
+@hookimpl
+def ata_register_components(register):
+    register("policy", "{name}", Rotated)
+    register("injector", "{name}_noise", Noise)
+'''
+
+
+@pytest.fixture
+def installed(tmp_path, monkeypatch):
+    """A package installed under a fresh name (so no earlier test imported it): its module
+    name, the policy's name and the environment variable its import sets."""
+    module = f"ata_installed_{uuid.uuid4().hex[:8]}"
+    name, marker = f"rotated_{module[-8:]}", f"ATA_TEST_{module.upper()}"
+    site = tmp_path / "site"
+    (site / module).mkdir(parents=True)
+    (site / module / "__init__.py").write_text(PLUGIN.format(marker=marker, name=name))
+    info = site / f"{module}-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {module}\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text(f"[ata]\n{module} = {module}\n")
+    monkeypatch.syspath_prepend(str(site))
+    monkeypatch.delenv(marker, raising=False)
+    yield module, name, marker
+    sys.modules.pop(module, None)
+
+
+def test_the_host_never_imports_an_installed_method(installed):
+    module, name, marker = installed
+    iso = isolate.require_sandbox(60)
+    over = [*SHORT, f"components.initial='{name}'", f"{name}.shift=2"]
+    session = load_session("builtin:greedy", over, isolate=iso)
+    # its settings were validated apart, and the host records them as any component's
+    assert f"[{name}]\nshift = 2" in session.mission.to_toml()
+    assert session.registry.get("policy", name, "").dist == f"{module} 0.1"
+    with torch_one_thread():
+        apart = run_batch(session.mission, session.registry, np.arange(3), isolate=iso)
+        # a worker process stands the method in the same way, importing none of it
+        unit = run_unit(Unit(0, session.mission, np.arange(3), parallel=True, isolate=iso))
+    assert module not in sys.modules and marker not in os.environ
+    inside_session = load_session("builtin:greedy", over)
+    assert module in sys.modules and marker in os.environ    # the check above can fail
+    with torch_one_thread():
+        inside = run_batch(inside_session.mission, inside_session.registry, np.arange(3))
+    skip = ("warnings", "wall_s", f"m:{isolate.TIMEOUT_COLUMN}")
+    keys = sorted(k for k in inside if k not in skip)
+    assert "scenario" in keys and sorted(k for k in apart if k not in skip) == keys
+    for key in keys:
+        np.testing.assert_array_equal(np.asarray(inside[key]), np.asarray(apart[key]), key)
+        np.testing.assert_array_equal(np.asarray(unit[key]), np.asarray(apart[key]), key)
+
+
+def test_a_bad_setting_of_an_installed_method_is_named_from_the_sandbox(installed):
+    module, name, marker = installed
+    iso = isolate.require_sandbox(60)
+    with pytest.raises(MissionError, match=rf"\[{name}\].*nope.*unknown key"):
+        load_session("builtin:greedy", [*SHORT, f"components.initial='{name}'",
+                                        f"{name}.nope=1"], isolate=iso)
+    assert module not in sys.modules and marker not in os.environ
+
+
+def test_an_undeclared_third_party_world_component_is_refused(installed):
+    module, name, marker = installed
+    iso = isolate.require_sandbox(60)
+    with pytest.raises(MissionError, match=r"ata\.components"):
+        load_session("builtin:greedy", [*SHORT, f"components.injectors=['{name}_noise']"],
+                     isolate=iso)
+    assert module not in sys.modules and marker not in os.environ
