@@ -117,10 +117,32 @@ def test_a_bad_setting_of_an_installed_method_is_named_from_the_sandbox(installe
     assert module not in sys.modules and marker not in os.environ
 
 
-def test_an_undeclared_third_party_world_component_is_refused(installed):
+def test_a_built_in_method_beside_an_installed_package_never_imports_it(installed):
     module, name, marker = installed
     iso = isolate.require_sandbox(60)
-    with pytest.raises(MissionError, match=r"ata\.components"):
-        load_session("builtin:greedy", [*SHORT, f"components.injectors=['{name}_noise']"],
-                     isolate=iso)
+    session = load_session("builtin:greedy", SHORT, isolate=iso)
+    with torch_one_thread():
+        run_unit(Unit(0, session.mission, np.arange(3), parallel=True, isolate=iso))
     assert module not in sys.modules and marker not in os.environ
+
+
+def test_an_undeclared_world_component_is_found_and_loaded_as_the_world(installed):
+    module, name, marker = installed
+    iso = isolate.require_sandbox(60)
+    session = load_session("builtin:greedy", [*SHORT, f"components.injectors=['{name}_noise']"],
+                           isolate=iso)
+    # the world's code runs in the world's process: found by importing each package alone in
+    # a sandbox, then loaded here
+    assert session.registry.get("injector", f"{name}_noise", "").dist == f"{module} 0.1"
+    assert module in sys.modules
+
+
+def test_a_method_whose_package_also_gives_the_world_is_refused(installed):
+    module, name, marker = installed
+    iso = isolate.require_sandbox(60)
+    with pytest.raises(MissionError, match=rf"cannot keep policy '{name}' apart"):
+        load_session("builtin:greedy", [*SHORT, f"components.injectors=['{name}_noise']",
+                                        f"components.initial='{name}'"], isolate=iso)
+    with pytest.raises(MissionError, match=r"no installed package provides it.*ata\.components"):
+        load_session("builtin:greedy", [*SHORT, "components.injectors=['nowhere_noise']"],
+                     isolate=iso)

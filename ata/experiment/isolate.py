@@ -164,6 +164,31 @@ def resolver(isolation: Isolation):
     return resolve
 
 
+def prober(isolation: Isolation):
+    """The `probe` of `ata.experiment.remote`: what one ``ata``-group entry point registers,
+    as a sandboxed process that imported it alone says (cached per process and entry point:
+    the installed packages do not change during a run)."""
+    def probe(entry_point: str) -> Any:
+        if entry_point not in _PROBED:
+            binds, paths = code_locations()
+            process = DecisionProcess(_spare_key(isolation) + ("probe",), None,
+                                      ([], [], True), binds, isolation)
+            try:
+                header, _ = process.call({"op": "probe", "entry_point": entry_point,
+                                          "paths": paths}, isolation.startup_timeout_s,
+                                         f"importing the plugin {entry_point!r} alone")
+            except ChildFailed:
+                header = {"components": []}       # one that fails to load provides nothing
+            finally:
+                process.close()
+            _PROBED[entry_point] = header
+        return _PROBED[entry_point]
+    return probe
+
+
+_PROBED: dict[str, Any] = {}
+
+
 # -- the process -------------------------------------------------------------------------------
 MAX_IDLE = 2
 """Decision processes kept started between batches (a unit of the same method reuses one and

@@ -10,6 +10,10 @@ settings as plain values. The host then stands a `RemoteComponent` in its regist
 settings (a `RemoteSettings`) are those values, recorded in the resolved mission and the plan
 key as any component's are; building one raises (it is built in the decision process only).
 
+A world component of a package that does not declare it is found by importing each installed
+``ata`` entry point alone in a sandboxed process of its own (`_world_providers`); the one entry
+point that provides it is then loaded in the host, as the world's code it is.
+
 What the host takes from the sandboxed process is data, checked here: names it asked for, of the
 kinds it asked for, values TOML can write. Which code the decision process may see (the folders
 of the third-party packages and their distribution records) is found here from the installed
@@ -133,23 +137,61 @@ def _names(raw: dict[str, Any]) -> list[tuple[str, str, str]]:
     return out
 
 
-def _own_registry(optional: list[str]) -> Register:
-    """The registry of ata's own plugins and of the third-party plugins declared to provide a
-    world component: no other third-party plugin is loaded (entry points are not walked)."""
-    return collect_components(get_plugin_manager(optional=optional, entry_points=False))
+def _own_registry(optional: list[str], world: tuple[str, ...] = ()) -> Register:
+    """The registry of ata's own plugins, the third-party plugins declared to provide a world
+    component (loaded when named) and the entry points `world` of the ``ata`` group (those found
+    to provide a world component the mission names): no other third-party plugin is loaded."""
+    pm = get_plugin_manager(optional=optional, entry_points=False)
+    for ep, dist in _entry_points():
+        if ep.group == THIRD_PARTY_GROUP and ep.name in world and pm.get_plugin(ep.name) is None:
+            pm.register(ep.load(), name=ep.name)
+            pm.ata_entry_points[ep.name] = (f"{dist.metadata['name']} {dist.version}",
+                                            f"{ep.name} = {ep.value}", THIRD_PARTY_GROUP)
+    pm.check_pending()
+    return collect_components(pm)
+
+
+def _world_providers(needed: list[tuple[str, str, str]], probe: Any) -> tuple[str, ...]:
+    """The ``ata``-group entry points that provide the world components `needed` ((slot, kind,
+    name)), which nothing declares. Each third-party entry point is imported alone in a
+    sandboxed process of its own (`probe`), which answers the components it registers: a
+    package can then only speak for itself, and a world component two of them claim is refused
+    as ambiguous."""
+    claims: dict[tuple[str, str], list[str]] = {}
+    for ep, _ in _entry_points():
+        if ep.group != THIRD_PARTY_GROUP:
+            continue
+        answer = probe(ep.name)
+        for item in answer.get("components", []) if isinstance(answer, dict) else []:
+            if isinstance(item, list) and len(item) == 2:
+                claims.setdefault((str(item[0]), str(item[1])), []).append(ep.name)
+    chosen = []
+    for slot, kind, name in needed:
+        who = list(dict.fromkeys(claims.get((kind, name), [])))
+        if len(who) != 1:
+            why = "no installed package provides it" if not who else \
+                f"packages {', '.join(who)} all say they provide it"
+            raise MissionError("[components]", slot, f"{kind} {name!r}: {why}; under --isolate "
+                               f"a package can declare it: entry point {kind}.{name} = "
+                               f"\"MODULE\" in the group {COMPONENTS_GROUP!r} (docs/plugins.md)")
+        chosen.append(who[0])
+    return tuple(dict.fromkeys(chosen))
 
 
 def isolated_registry(raw: dict[str, Any], optional: list[str], source: str,
-                      resolve: Any) -> Register:
+                      resolve: Any, probe: Any) -> Register:
     """The host's registry for a mission run under --isolate (see the module's text).
 
     :param resolve: called with (raw mission without its seed, source, [(kind, name)]) for the
         remote components; returns the sandboxed process's answer (`ata.runtime.decider`).
+    :param probe: called with an ``ata``-group entry point's name; returns what a sandboxed
+        process that imported it alone says it registers.
     """
     registry = _own_registry(optional)
     declared = declared_components()
     remote: list[tuple[str, str]] = []
     world: set[str] = set()
+    undeclared = []
     for slot, kind, name in _names(raw):
         if (kind, name) in registry.components:
             continue
@@ -159,13 +201,13 @@ def isolated_registry(raw: dict[str, Any], optional: list[str], source: str,
                 continue                          # ata's own learned methods load lazily
             remote.append((kind, name))
         elif module is None:
-            raise MissionError("[components]", slot, f"--isolate loads no third-party code "
-                               f"in the world's process unless it is declared: {kind} "
-                               f"{name!r} needs an entry point {kind}.{name} = \"MODULE\" in "
-                               f"the group {COMPONENTS_GROUP!r} of its package "
-                               "(docs/plugins.md)")
+            undeclared.append((slot, kind, name))
         elif _third_party(module):
             world.add(_top(module))
+    if undeclared:
+        eps = _world_providers(undeclared, probe)
+        world |= {_top(_module_of(e)) for e in eps}
+        registry = _own_registry(optional, eps)
     if not remote:
         return registry
     public = json.loads(json.dumps(raw, default=str))
@@ -236,15 +278,26 @@ def _dist_of(plugin: str) -> str:
     return "?"
 
 
-def worker_registry(mission: Any) -> Register | None:
-    """A worker's registry for a mission with remote components (None for one without): ata's
-    own plugins, the declared world plugins, and a `RemoteComponent` for each remote one."""
-    remote = [s for s in mission.component_settings.values() if isinstance(s, RemoteSettings)]
-    if not remote:
-        return None
-    registry = _own_registry(list(mission.settings.plugins))
-    for s in remote:
-        registry.components[(s.kind, s.name)] = ComponentInfo(s.kind, s.name,
-                                                              RemoteComponent(s), s.plugin,
-                                                              s.dist)
+def worker_registry(mission: Any, probe: Any) -> Register:
+    """A worker's registry for a mission run under --isolate: ata's own plugins, the world's
+    third-party plugins found as the host found them (`probe`: see `isolated_registry`), and a
+    `RemoteComponent` for each remote component; no other third-party code is imported."""
+    optional = list(mission.settings.plugins)
+    registry = _own_registry(optional)
+    declared = declared_components()
+    undeclared = []
+    for slot, kind in SLOT_KINDS.items():
+        if slot in DECISION_SLOTS:
+            continue
+        value = getattr(mission.slots, slot)
+        for name in value if isinstance(value, list) else [value]:
+            if (kind, name) not in registry.components and (kind, name) not in declared:
+                undeclared.append((slot, kind, name))
+    if undeclared:
+        registry = _own_registry(optional, _world_providers(undeclared, probe))
+    for s in mission.component_settings.values():
+        if isinstance(s, RemoteSettings):
+            registry.components[(s.kind, s.name)] = ComponentInfo(s.kind, s.name,
+                                                                  RemoteComponent(s),
+                                                                  s.plugin, s.dist)
     return registry

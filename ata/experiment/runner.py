@@ -104,9 +104,9 @@ def load_session(path: str | None = None, overrides: list[str] | None = None,
     if plugins:
         raw.setdefault("mission", {})["plugins"] = optional
     if isolate is not None and not extra:
-        from ata.experiment.isolate import resolver
+        from ata.experiment.isolate import prober, resolver
         from ata.experiment.remote import isolated_registry
-        registry = isolated_registry(raw, optional, source, resolver(isolate))
+        registry = isolated_registry(raw, optional, source, resolver(isolate), prober(isolate))
         pm = registry.pm
     else:
         pm = get_plugin_manager(optional=optional, extra=extra)

@@ -22,7 +22,7 @@ from ata.core.kernel import Simulation
 from ata.core.mission import Mission
 from ata.core.registry import Register, collect_components, get_plugin_manager
 from ata.experiment import runlog
-from ata.experiment.isolate import Isolation
+from ata.experiment.isolate import Isolation, prober
 from ata.experiment.remote import worker_registry
 from ata.runtime.cache import run_cache
 from ata.runtime.executors import Executor
@@ -141,9 +141,11 @@ def run_unit(unit: Unit, on_epoch: Callable[[int], None] | None = None) -> dict[
     t0 = time.perf_counter()
     mission = one_worker(unit.mission) if unit.parallel else unit.mission
     registry = unit.registry
-    if registry is None:        # a method the host never imports (--isolate) stays out here too
-        registry = worker_registry(mission) or collect_components(
-            get_plugin_manager(optional=mission.settings.plugins))
+    if registry is None and unit.isolate is not None:
+        # a method the host never imports (--isolate) stays out of its workers too
+        registry = worker_registry(mission, prober(unit.isolate))
+    elif registry is None:
+        registry = collect_components(get_plugin_manager(optional=mission.settings.plugins))
     with torch_one_thread(), run_cache(unit.cache):
         out = run_batch(mission, registry, unit.ids, on_epoch=on_epoch, isolate=unit.isolate)
     out["wall_s"] = time.perf_counter() - t0

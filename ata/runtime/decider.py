@@ -218,6 +218,18 @@ def resolve(req: dict[str, Any]) -> dict[str, Any]:
     return {"components": out}
 
 
+def probe(req: dict[str, Any]) -> dict[str, Any]:
+    """What one entry point of the ``ata`` group registers, imported alone (the host finds the
+    package of an undeclared world component so: `ata.experiment.remote`)."""
+    from importlib import metadata
+    eps = [ep for ep in metadata.entry_points(group="ata") if ep.name == req["entry_point"]]
+    pm = pluggy.PluginManager("ata")
+    pm.add_hookspecs(hookspecs)
+    for ep in eps[:1]:
+        pm.register(ep.load(), name=ep.name)
+    return {"components": [list(key) for key in collect_components(pm).components]}
+
+
 def serve(fd_in: int, fd_out: int) -> None:
     """Answer requests until the host closes the channel (or says close)."""
     decider: Decider | None = None
@@ -226,9 +238,9 @@ def serve(fd_in: int, fd_out: int) -> None:
         if req is None or req.get("op") == "close":
             return
         try:
-            if req["op"] == "resolve":
+            if req["op"] in ("resolve", "probe"):
                 sys.path[:0] = req.get("paths", [])
-                child_send(fd_out, resolve(req))
+                child_send(fd_out, (resolve if req["op"] == "resolve" else probe)(req))
                 continue
             if req["op"] == "init":
                 sys.path[:0] = req.get("paths", [])
