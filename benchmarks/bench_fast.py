@@ -5,8 +5,10 @@ Usage: python benchmarks/bench_fast.py [--quick] [--only 1,2,...] [--train-set T
 1. the paper's suite (`ata eval examples/paper_suite.toml -w 2`) with an empty ITA-MILP cache,
    wall time (--quick: 50 scenarios per cell, one `ata eval` unit of 50 each, extrapolated
    tenfold to the 500 of the suite: an upper bound, the suite's units being of 250);
-2. ATA-HRL's CPU time per scenario over greedy's, settings (a) and (b), in `ata run`'s batches,
-   each the least of 2 (--quick) or 3 runs made in alternation;
+2. ATA-HRL's CPU time per scenario over greedy's, whole process (`ata run` in a fresh process),
+   settings (a) and (b) and the custom teams 9/12/90 and 20/28/250 at high uncertainty, and the
+   growth of ATA-HRL's time with the POIs between the last two (issue 44's goals 1 and 2;
+   bench_scaling; --quick: half the scenarios);
 3. greedy with on-event reallocation, batch 500 over batch 1 throughput, (a) and (b), each side
    the best of 2 (--quick) or 3 runs made in alternation;
 4. ATA-HRL's (a) training recipe (ata/missions/train_ata_hrl.toml): a few steps of each part
@@ -15,7 +17,7 @@ Usage: python benchmarks/bench_fast.py [--quick] [--only 1,2,...] [--train-set T
 6. the gym vector env against single envs, setting (a), each side the least time of 2
    (--quick) or 3 runs made in alternation.
 
-Each figure has one implementation, in the benchmark it belongs to (bench_suite, bench_batches,
+Each figure has one implementation, in the benchmark it belongs to (bench_suite, bench_scaling,
 bench_kernel, bench_training, bench_memory, bench_gym); this driver calls them. Figures are
 ratios or sizes within one run: the machine is shared and noisy, so compare ratios, and run
 twice. What is measured and what is extrapolated is printed with each figure.
@@ -32,26 +34,22 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-import bench_batches  # noqa: E402
 import bench_gym  # noqa: E402
 import bench_kernel  # noqa: E402
 import bench_memory  # noqa: E402
+import bench_scaling  # noqa: E402
 import bench_suite  # noqa: E402
 import bench_training  # noqa: E402
 from ata.experiment.evaluate import DEFAULT_CHUNK  # noqa: E402
-from ata.experiment.runner import BASELINE_MISSION, BUILTIN_MISSION, load_session  # noqa: E402
-from ata.experiment.units import RUN_CHUNK, fixed_chunks, scenario_ids  # noqa: E402
 
-ATA_HRL_B = HERE.parent / "examples" / "missions" / "ata_hrl_b.toml"
-NO_REPLAN = "ATA-HRL without its full re-plan (ctr.replan_in_full=false)"
 # the quick suite runs 50 scenarios a cell, one unit of 50 per cell. Each unit pays a fixed
 # time beside its scenarios' (the learned methods' decoder steps), which the full suite, in
 # units of 250 (`ata eval`'s default), pays a fifth as often: the tenfold extrapolation is an
 # upper bound (at 20 a cell it came out several times too high)
-QUICK = {"suite": 50, "per_scenario": {"a": 100, "b": 50}, "single": 10,
+QUICK = {"suite": 50, "single": 10,
          "recipe": (10, 1, 1), "pois": [130, 260, 520], "poi_batch": 5, "gym_rounds": 2,
          "least_of": 2}
-FULL = {"suite": 500, "per_scenario": {"a": 500, "b": 200}, "single": 20,
+FULL = {"suite": 500, "single": 20,
         "recipe": (50, 4, 2), "pois": [130, 260, 520, 1040], "poi_batch": 10, "gym_rounds": 5,
         "least_of": 3}
 SUMMARY: list[str] = []
@@ -83,29 +81,17 @@ def figure_suite(cfg: dict) -> None:
 
 
 def figure_per_scenario(cfg: dict) -> None:
-    for setting, n in cfg["per_scenario"].items():
-        ata_hrl = str(BUILTIN_MISSION if setting == "a" else ATA_HRL_B)
-        sessions = {"greedy": load_session(str(BASELINE_MISSION), [
-                        f"mission.setting='{setting}'", f"mission.scenarios={n}"]),
-                    "ATA-HRL": load_session(ata_hrl, [f"mission.scenarios={n}"]),
-                    # beside the figure, not in it: ATA-HRL without its full re-plan
-                    NO_REPLAN: load_session(ata_hrl, [f"mission.scenarios={n}",
-                                                      "ctr.replan_in_full=false"])}
-        # the two in alternation, each keeping its least time (a run on a shared machine is
-        # only ever slowed by other work): greedy's few seconds vary most
-        cpu = {name: float("inf") for name in sessions}
-        for _ in range(cfg["least_of"]):
-            for name, session in sessions.items():
-                chunks = fixed_chunks(scenario_ids(session.mission), RUN_CHUNK)
-                cpu[name] = min(cpu[name], bench_batches.least_cpu_seconds(session, chunks, 1))
-        say(f"[2] ({setting}) {n} scenarios in batches of <= {RUN_CHUNK}, CPU seconds (least of "
-            f"{cfg['least_of']} alternating runs): ATA-HRL {cpu['ATA-HRL']:.1f} s, greedy "
-            f"{cpu['greedy']:.1f} s")
-        say(f"[2] ({setting}) {NO_REPLAN}: {cpu[NO_REPLAN]:.1f} s, "
-            f"{cpu[NO_REPLAN] / cpu['greedy']:.1f}x greedy (a speed it buys with points: "
-            "docs/findings.md)")
-        say(f"(2) ATA-HRL per scenario vs greedy ({setting}): "
-            f"{cpu['ATA-HRL'] / cpu['greedy']:.1f}x (goal <= 2x)", summary=True)
+    """Issue 44's goals 1 and 2: ATA-HRL's time per scenario over greedy's, whole process,
+    in (a), (b) and at 20/28/250, and its growth with the POIs (bench_scaling)."""
+    rows = bench_scaling.measure(["a", "b", "90", "250"], cfg["least_of"] < 3, 1, say=say)
+    for key in ("a", "b"):
+        say(f"(2) goal 1: ATA-HRL per scenario vs greedy, whole process, "
+            f"{rows[key]['label']}: {rows[key]['ratio']:.1f}x (goal <= 2x)", summary=True)
+    say(f"(2) goal 2: ATA-HRL per scenario vs greedy, whole process, {rows['250']['label']}: "
+        f"{rows['250']['ratio']:.1f}x (goal <= 4x)", summary=True)
+    say(f"(2) goal 2: ATA-HRL's time per scenario grows as POIs^"
+        f"{bench_scaling.growth(rows, 'ATA-HRL'):.2f} from 90 to 250 POIs (greedy's: POIs^"
+        f"{bench_scaling.growth(rows, 'greedy'):.2f}) (goal: at most POIs^1.5)", summary=True)
 
 
 def figure_batch_and_memory(cfg: dict, do_batch: bool, do_memory: bool) -> None:

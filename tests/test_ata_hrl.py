@@ -338,8 +338,8 @@ def test_the_full_replan_is_taken_only_where_the_model_expects_it_to_be_worth_mo
     seen = []
 
     class Spy(CTRPolicy):
-        def _or_full_replan(self, sub, seen_state, emb, alloc):
-            out, take = super()._or_full_replan(sub, seen_state, emb, alloc)
+        def _or_full_replan(self, sub, replan, alloc):
+            out, take = super()._or_full_replan(sub, replan, alloc)
             at, price = plan_start(sub), self.greedy.s.human_time_cost
             value = [worth(sub, at, a, sub.reallocatable, retask_cost(sub), price)
                      for a in (alloc, out)]
@@ -362,6 +362,32 @@ def test_the_full_replan_is_taken_only_where_the_model_expects_it_to_be_worth_mo
         assert same[~take].all()                                       # not taken: unchanged
         assert same[~open_].all()                                      # closed POIs: unchanged
     assert not np.array_equal(plain.allocations, full.allocations)
+
+
+def test_one_pass_and_the_deciding_episodes_alone_decode_as_every_episode_apart(monkeypatch):
+    # taking the mode, pi_TR's reallocation and the full re-plan decoded in one pass, on the
+    # episodes still deciding alone: as decoded apart, every episode to the end
+    from ata.plugins.ata_hrl import decode as D
+    s = session()
+    torch.manual_seed(0)
+    net = ATAHRLNet(NetConfig(d_model=16, hidden=16, recon_hidden=8))
+    with torch.no_grad():              # a learned part that is not zero
+        [p.add_(0.05 * torch.randn_like(p)) for p in net.parameters()]
+
+    def run(apart):
+        over = components(s, net)
+        if apart:                      # not the argmax chooser itself: two passes
+            over["reallocation"].sampler = lambda kind, logits: D.argmax_chooser(kind, logits)
+        return Simulation(s.mission, s.registry, list(range(8)), overrides=over).run()
+
+    taken, take = [], Decoder.take
+    monkeypatch.setattr(Decoder, "take", lambda dec, rows: taken.append(rows) or take(dec, rows))
+    fast = run(False)
+    assert taken                                      # episodes were dropped on the way
+    monkeypatch.setattr(D, "SHRINK", 0.0)            # never drop a finished episode
+    slow = run(True)
+    assert fast.allocations.size and np.array_equal(fast.allocations, slow.allocations)
+    np.testing.assert_array_equal(fast.r_perf, slow.r_perf)
 
 
 def test_aux_reconstructs_only_the_parts_it_is_given():

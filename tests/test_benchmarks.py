@@ -91,3 +91,13 @@ def test_the_gym_benchmark_keeps_the_least_time_of_alternating_runs(monkeypatch)
     assert (r["cpu_single"], r["cpu_vector"]) == (16.0, 1.2)
     assert r["ratio"] == (128 / 1.6) / (128 / 16.0)
     assert r["cpu_ratio"] == 16.0 / 1.2
+
+
+def test_the_scaling_benchmark_times_a_whole_run_and_reads_growth_as_an_exponent():
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from bench_scaling import GREEDY, growth, run_cpu_seconds
+    assert run_cpu_seconds(GREEDY, ["mission.tasks=12"], 2) > 0
+    # t = c P^2: an exponent of 2 between any two sizes
+    rows = {"90": {"pois": 90, "greedy": 90 ** 2 * 1e-5},
+            "250": {"pois": 250, "greedy": 250 ** 2 * 1e-5}}
+    assert abs(growth(rows, "greedy") - 2.0) < 1e-12

@@ -1,7 +1,7 @@
 """The centralised view as Gymnasium environments: one agent allocates the whole team.
 
 At epoch 0 the agent makes the initial allocation; at each later epoch it decides whether to
-reallocate and, if so, the new allocation (the condition and the reallocation of MODEL.md in
+reallocate and, if so, the new allocation (the condition and the reallocation of the model in
 one action). The reward of a step is the team's points in that epoch (``EpisodeRecord.r_perf``).
 
 Observation (a ``Dict`` of float32 ``Box`` spaces, fixed shapes for a mission's team):
@@ -115,13 +115,17 @@ class CentralisedView:
             free, flag = np.ones((B, P), bool), [False, True]
         else:
             free, flag = episodes.context.reallocatable, [True, True]
-        # the triples in force as action values (navigator and classifier shifted by one)
+        # every choice of a free POI; of the others, the triple in force (as action values:
+        # robot, then navigator and classifier shifted by one, each dimension at its offset)
+        per_task = np.empty((B, P, R + 2 * (1 + H)), bool)
+        per_task[...] = free[..., None]
         current = (np.zeros((B, P, 3), np.int64) if allocation is None
                    else allocation.stack() + [0, 1, 1])
-        parts = [(np.arange(n) == current[..., i, None]) | free[..., None]
-                 for i, n in enumerate((R, 1 + H, 1 + H))]
-        per_task = np.concatenate(parts, axis=-1).reshape(B, -1)
-        return np.concatenate([np.broadcast_to(np.array(flag), (B, 2)), per_task], axis=1)
+        np.put_along_axis(per_task, current + [0, R, R + 1 + H], True, axis=-1)
+        out = np.empty((B, 2 + per_task[0].size), bool)
+        out[:, :2] = flag
+        out[:, 2:] = per_task.reshape(B, -1)
+        return out
 
     @staticmethod
     def encode(allocation: Allocation, reallocate: np.ndarray) -> np.ndarray:

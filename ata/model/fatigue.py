@@ -1,4 +1,4 @@
-"""Individual fatigue (MODEL.md section 5, revision 3), and what a policy believes about it.
+"""Individual fatigue (docs/model.md: "Humans", revision 3), and what a policy believes about it.
 
 A human's F_f is 1 below the onset T_on (hours of work), then ``max(floor, 1 - k (T - T_on))``.
 Each human's onset and slope are drawn per scenario and hidden; ``fatigue_spread`` s sets how far
@@ -23,7 +23,7 @@ from typing import Mapping
 import numpy as np
 
 ONSET_H = 1.0
-"""The population's fatigue onset, hours of work (MODEL.md section 5, [testbed])."""
+"""The population's fatigue onset, hours of work (docs/model.md, "Humans"[testbed])."""
 SLOPE_PER_H = 0.3
 """The population's fatigue slope, per hour of work after the onset ([testbed])."""
 FATIGUE_SPREAD = 1.0

@@ -1,6 +1,6 @@
 """The greedy planner: list scheduling on expected points, the ``greedy`` policy's allocation and
 the prior of the learned methods that build on it (a public host module, so that no policy
-imports another's).
+imports another's). The score of a candidate is `ata.model.greedy_score`'s.
 
 The robot that is free first (by the plan so far) takes the open POI with the best rate of net
 expected points per second of its time. For each POI it weighs driving autonomously against
@@ -13,7 +13,7 @@ each human's fatigue belief (`ata.model.plan.fatigue_belief`: with ``identity``,
 fatigue observed now moved along the population line), and the constants the team models
 publish (`ata.model.team`).
 
-Reallocation prices the re-tasking cost of MODEL.md section 3a (`ata.model.retask`). Where it
+Reallocation prices the re-tasking cost of docs/model.md (`ata.model.retask`). Where it
 is not zero, the planner weighs three candidates by their projected value in expectation
 (`ata.model.plan`) net of that cost and of the human time they book: keeping the allocation in
 force, repairing it (re-planning only the POIs of robots seen down and the POIs whose kind or
@@ -29,7 +29,7 @@ import numpy as np
 
 from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext
-from ata.model import tables
+from ata.model import greedy_score, tables
 from ata.model.plan import as_seen, fatigue_belief, plan_start, project, seen, task_attributes
 from ata.model.retask import RetaskCost, retask_cost, worth_many
 from ata.model.team import RobotConstants
@@ -304,7 +304,7 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
             f_f = belief.ahead(hours[tb, th], human_free[tb, th], now, rows=(tb, th))
             gain[th, tb] = _human_gain(eta[tb, th] * f_f * lam[tb, th], f_d, points12)
         delay = np.maximum(human_free - t_free[:, None], 0.0).T[:, :, None]
-        net_h = gain - s.human_time_cost * (t_bar + delay)
+        net_h = greedy_score.human_net(gain, t_bar, delay, s.human_time_cost)
         best = np.maximum.reduce(net_h, axis=0)                                 # (A, 12)
         best_c = H - np.maximum.reduce((net_h == best) * h_weight, axis=0)
         best_net = best.ravel()
@@ -329,12 +329,12 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
         combo = combo0[:, None] + options                                      # (A, O)
         qd = qd_flat[b_all[:, None], combo]
         finish = np.maximum(arrival, best_free[qd]) + tbar_task[b_all[:, None], combo]
-        value = np.maximum(np.where(finish <= horizon, best_net[qd], 0.0),
-                           ev_onboard[b_all[:, None], combo])
+        value = greedy_score.option_value(best_net[qd], finish, horizon,
+                                          ev_onboard[b_all[:, None], combo])
         if n_opt == 2:
             value[:, 1] -= nav_cost
         with np.errstate(invalid="ignore"):       # inf - inf for robots that are done
-            rate = value / (arrival - t_free[:, None, None] + s.rate_offset_s)
+            rate = greedy_score.rate(value, arrival - t_free[:, None, None], s.rate_offset_s)
         score = np.where(remaining[:, None, :] & (arrival <= horizon), rate,
                          -np.inf).reshape(A, -1)                                # (A, O * C)
         flat = score.argmax(axis=1)

@@ -1,6 +1,6 @@
 """The humans' projected load while a plan is built step by step: when each is free, the work
 booked, and from it the fatigue (the plan start's `FatigueBelief` read at the hours booked) and
-the utilisation over the trailing window (MODEL.md section 5) at any time of the plan, in
+the utilisation over the trailing window (docs/model.md: "Humans") at any time of the plan, in
 expectation. For policies that decode an allocation member by member (the ATA-HRL decoder)."""
 
 from __future__ import annotations
@@ -103,6 +103,16 @@ class HumanLoad:
             f_w = tables.workload(u)
             p = 0.5 + self._eta_lam[sel] * f_f * f_w * f_d
         return p, finish, begin, u, f_w, f_f
+
+    def take(self, rows: np.ndarray) -> "HumanLoad":
+        """The load of plans `rows` alone (a copy; the grid's edges shared)."""
+        out = HumanLoad.__new__(HumanLoad)
+        out.start, out.window_s, out.edges = self.start.take(rows), self.window_s, self.edges
+        for name in ("free", "booked", "fatigue_now", "util_now", "cum", "_eta_lam",
+                     "_fatigue", "_fatigue_greedy"):
+            v = getattr(self, name)
+            setattr(out, name, None if v is None else v[rows])
+        return out
 
     def book(self, e: np.ndarray, h: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
         """Book human h of plan e busy over [a, b) (each (n,))."""

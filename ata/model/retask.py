@@ -1,4 +1,4 @@
-"""The re-tasking cost of MODEL.md section 3a (who a reallocation re-tasks, and what that costs),
+"""The re-tasking cost of docs/model.md (who a reallocation re-tasks, and what that costs),
 and what a candidate allocation is worth net of it: the value model greedy weighs its candidates
 by, public for the policies that weigh theirs alike."""
 

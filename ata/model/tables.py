@@ -1,4 +1,4 @@
-"""The tables and formulas of MODEL.md, as arrays and vectorised functions, for the team models
+"""The tables and formulas of the model, as arrays and vectorised functions, for the team models
 and the policies alike.
 
 Codes: kind 0 = air, 1 = ground; difficulty 0 = low, 1 = medium, 2 = high; image quality
@@ -22,6 +22,8 @@ SKILLS = ("low", "medium", "high")
 
 POINTS = np.array([15.0, 25.0, 35.0])
 """Points by difficulty [paper]."""
+MAX_POINTS = float(POINTS.max())
+"""The most a POI is worth (35 points): the scale on which learned policies read points."""
 
 QUALITY = np.array([
     # navigator class:  low, auto/medium, high

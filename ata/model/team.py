@@ -1,4 +1,4 @@
-"""The constants a team model publishes for the policies, typed, with MODEL.md's defaults.
+"""The constants a team model publishes for the policies, typed, with the model's defaults.
 
 The built-in human and robot models publish a `HumanConstants` and a `RobotConstants` in
 ``ata_setup`` (``sim.publish(value)``), from their settings. A policy reads them from its context
@@ -7,7 +7,7 @@ The built-in human and robot models publish a `HumanConstants` and a `RobotConst
 policies price it by them; one that publishes none makes a policy that needs them fail with an
 error naming the missing type, never assume a default.
 
-The module constants are MODEL.md's defaults, held here once: the team models' settings start
+The module constants are the model's defaults, held here once: the team models' settings start
 from them, and so do the fields of the published types.
 """
 
@@ -40,7 +40,7 @@ SKILL_SPEED = (2.0 / 3.0, 1.0, 1.5)
 
 @dataclass(frozen=True)
 class HumanConstants:
-    """The human model's constants that a policy may assume (MODEL.md sections 3a and 5)."""
+    """The human model's constants that a policy may assume (docs/model.md)."""
 
     published_by: ClassVar[str] = "the human model (slot human_model)"
 
@@ -57,7 +57,7 @@ class HumanConstants:
 
 @dataclass(frozen=True)
 class RobotConstants:
-    """The robot model's constants that a policy may assume (MODEL.md sections 3a and 4)."""
+    """The robot model's constants that a policy may assume (docs/model.md)."""
 
     published_by: ClassVar[str] = "the robot model (slot robot_model)"
 

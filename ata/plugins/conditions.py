@@ -7,6 +7,7 @@ import numpy as np
 
 from ata import hookimpl
 from ata.core.state import DecisionContext
+from ata.model.events import EventWatch
 
 
 class Never:
@@ -36,22 +37,12 @@ class OnEvent:
     difficulty newly different from the last epoch's observation."""
 
     def __init__(self, settings: None, mission: object):
-        self.prev_working: np.ndarray | None = None
-        self.prev_attrs: np.ndarray | None = None
+        self.events = EventWatch()
 
     @hookimpl
     def ata_should_reallocate(self, ctx: DecisionContext) -> np.ndarray:
-        robots, tasks = ctx.observed["robots"], ctx.observed["tasks"]
-        working = robots.col("working") > 0.5
-        attrs = np.stack([tasks.col("kind"), tasks.col("difficulty")], axis=-1)
-        if self.prev_working is None:   # first call: compare with the state at t = 0
-            estimate = ctx.inherent["tasks"]
-            self.prev_working = np.ones_like(working)
-            self.prev_attrs = np.stack([estimate.col("kind"), estimate.col("difficulty")], -1)
-        event = (self.prev_working & ~working).any(axis=1)
-        event |= (attrs != self.prev_attrs).any(axis=(1, 2))
-        self.prev_working, self.prev_attrs = working, attrs
-        return event
+        failed, changed = self.events.step(ctx, ctx.observed["robots"].col("working") > 0.5)
+        return failed.any(axis=1) | changed.any(axis=1)
 
 
 @hookimpl

@@ -5,7 +5,8 @@
 - ``ctr`` (ata.plugins.ata_hrl.ctr): conditional task reallocation ``ctr`` (pi_C and pi_TR);
 - ``aux`` (ata.plugins.ata_hrl.aux): the auxiliary state reconstruction ``aux``.
 
-Modules: ``decoder`` (capacity-aware decoding in numpy), ``network`` (the torch networks),
-``decode`` (running the decoder with a network), ``features``, ``components``, ``rewards``,
-``checkpoint``, ``trainer`` and its ``phases``. It uses only ata's public plugin API.
+Modules: ``decoder`` (capacity-aware decoding in numpy) and its step ``inputs``, ``network``
+(the torch networks), ``decode`` (running the decoder with a network), ``features``,
+``components``, ``rewards``, ``checkpoint``, ``trainer`` and its ``phases``. It uses only
+ata's public plugin API.
 """

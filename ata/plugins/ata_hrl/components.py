@@ -22,12 +22,14 @@ from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext, Observation, SimState
 from ata.plugins.ata_hrl import decode as D
 from ata.plugins.ata_hrl.checkpoint import load_net, require_trained, trained_ranges
-from ata.plugins.ata_hrl.decoder import DecodeSettings, Decoder
-from ata.plugins.ata_hrl.features import (GROUPS, inherent_features, seen_state, state_features,
-                                          to_tensors)
+from ata.plugins.ata_hrl.decoder import Decoder
+from ata.plugins.ata_hrl.inputs import DecodeSettings
+from ata.plugins.ata_hrl.features import (GROUPS, inherent_features, seen_state, state_column,
+                                          state_features, to_tensors)
 from ata.plugins.ata_hrl.network import ATAHRLNet, COND_FEATURES
 from ata.plugins.ata_hrl.status import StatusTracker, guesses as status_guesses
 from ata.model.fatigue import FatigueBelief
+from ata.model.events import EventWatch
 from ata.model.greedy_planner import GreedyPlanner, GreedySettings
 from ata.model.plan import PlanStart, as_seen, plan_start, project, task_attributes
 from ata.model.retask import retask_cost, worth_many
@@ -77,14 +79,15 @@ def decoder_start(ctx: DecisionContext, seen: dict[str, np.ndarray] | None
         # utilisation
         return start, start.belief.at(start.hours), np.zeros_like(start.hours)
     if "aux_robots" in ctx.reconstructed:
-        rob = seen["robots"]
         area = ctx.inherent.extras["area_m"][:, None]
-        down = rob[..., 3] < 0.5
+        down = state_column(seen, "robots", "working") < 0.5
         start.robot_free = np.where(down, np.inf, start.robot_free)
         moving = start.robot_at >= 0
-        xy = np.stack([rob[..., 0], rob[..., 1]], -1) * area[..., None]
+        xy = np.stack([state_column(seen, "robots", "x"), state_column(seen, "robots", "y")],
+                      -1) * area[..., None]
         start.robot_xy = np.where(moving[..., None], start.robot_xy, xy)
-    return start, seen["humans"][..., 1], 1.0 - seen["humans"][..., 2]
+    return (start, state_column(seen, "humans", "fatigue"),
+            1.0 - state_column(seen, "humans", "idleness"))
 
 
 class LearnedComponent:
@@ -191,8 +194,7 @@ class CTRPolicy(LearnedComponent):
         self.emb: dict[str, torch.Tensor] | None = None
         self.raw: dict[str, np.ndarray] | None = None
         self.seen: dict[str, np.ndarray] | None = None
-        self.prev_working: np.ndarray | None = None
-        self.prev_attrs: np.ndarray | None = None
+        self.events = EventWatch()     # robots newly down, POIs newly changed (pi_C's prior)
         self.last_realloc: np.ndarray | None = None
         self.planned_attrs: np.ndarray | None = None    # (B, P, 2) attributes planned with
         # greedy's reallocation, keeping or repairing (not re-planning in full, which would
@@ -217,12 +219,40 @@ class CTRPolicy(LearnedComponent):
         self.seen = seen_state(ctx)
         with torch.no_grad():
             self.emb = self.net.tr.embed(self.emb_i, to_tensors(self.raw), to_tensors(self.seen))
-        self.cond_feats, self.cond_prior = condition_features(self, ctx)
+        self.cond_feats, self.cond_prior = self._condition_features(ctx)
         if self.recorder is not None:
             rec = self.recorder
             rec.cond_state.append((self.raw, self.seen))
             rec.cond_feats.append(self.cond_feats)
             rec.cond_prior.append(self.cond_prior)
+
+    def _condition_features(self, ctx: DecisionContext) -> tuple[np.ndarray, np.ndarray]:
+        """pi_C's inputs beside the state embedding, (B, COND_FEATURES), and its prior (B,): +1
+        where the observation shows a robot newly down or a POI's kind or difficulty newly
+        changed (the ``on_event`` rule), else -1. At the first epoch it also starts the
+        memory of what each POI was planned with."""
+        S, seen = ctx.observed, self.seen
+        B, P = ctx.reallocatable.shape
+        R = ctx.sizes.robots
+        T = ctx.clock.n_epochs
+        working = state_column(seen, "robots", "working") > 0.5
+        if self.last_realloc is None:
+            est = ctx.inherent["tasks"]
+            self.planned_attrs = np.stack([est.col("kind"), est.col("difficulty")], -1)
+            self.greedy_attrs = self.planned_attrs.copy()
+            self.last_realloc = np.zeros(B)
+        failed, changed = self.events.step(ctx, working)
+        event = failed.any(1) | changed.any(1)
+        prev = ctx.previous
+        held_by_down = (ctx.reallocatable & ~np.take_along_axis(working, prev.robot, 1)).sum(1)
+        util = 1.0 - state_column(seen, "humans", "idleness")
+        unvisited = S["tasks"].col("unvisited")
+        feats = np.stack([event.astype(float), failed.sum(1) / R, changed.sum(1) / P,
+                          held_by_down / P, np.full(B, ctx.epoch / T),
+                          (ctx.epoch - self.last_realloc) / T, util.mean(1), util.max(1),
+                          util.min(1), unvisited.mean(1)], -1)
+        assert feats.shape[1] == COND_FEATURES
+        return feats.astype(np.float32), np.where(event, 1.0, -1.0).astype(np.float32)
 
     @hookimpl
     def ata_should_reallocate(self, ctx: DecisionContext) -> np.ndarray:
@@ -256,8 +286,6 @@ class CTRPolicy(LearnedComponent):
         sub = ctx.take(rows)
         seen = {g: v[rows] for g, v in self.seen.items()}
         start, fatigue, util = decoder_start(sub, seen)
-        settings = decode_settings(ctx)
-        dec = Decoder(start, sub.reallocatable, fatigue, util, settings, previous=sub.previous)
         kept_proj = project(start, sub.previous)
         attrs = task_attributes(sub)
         changed = (attrs != self.planned_attrs[rows]).any(-1)
@@ -269,83 +297,60 @@ class CTRPolicy(LearnedComponent):
                                      "raw": {g: v[rows] for g, v in self.raw.items()},
                                      "seen": seen})
         choose = self.chooser(sub, "ctr")      # the reallocating scenarios' own streams
+        # taking the mode and recording nothing, the full re-plan is decoded in the same pass
+        # as the per-POI reallocation: plans 0..E-1 are the reallocation's, E..2E-1 the re-plan's
+        E = rows.size
+        one_pass = self.settings.replan_in_full and trace is None and choose is D.argmax_chooser
+        plans = np.tile(np.arange(E), 2 if one_pass else 1)
+        mine = np.arange(E)
+        dec = Decoder(start.take(plans), sub.reallocatable[plans], fatigue[plans], util[plans],
+                      decode_settings(ctx), previous=sub.previous.take(plans))
+        emb_plans = {g: v[torch.from_numpy(plans)] for g, v in emb.items()}
         # the heuristic's choice, the prior: greedy weighs keeping, repairing and re-planning
         self.greedy.planned_attrs = self.greedy_attrs[rows]
         heuristic = self.greedy.reallocate(sub, np.ones(rows.size, bool))
         self.greedy_attrs[rows] = self.greedy.planned_attrs
-        keep_in = dec.keep_inputs(kept_proj.expected, kept_proj.finish, changed, heuristic)
+        keep_in = dec.keep_inputs(kept_proj.expected[plans], kept_proj.finish[plans],
+                                  changed[plans], heuristic.take(plans)).take(mine)
         first = D.decide_keep(keep_in, self.net.tr, emb, choose,
                               residual=self.settings.learned, trace=trace)
         # booked first: the kept POIs with their triples, greedy's with greedy's; the rest are
         # decoded after them
         booked = heuristic.where(first == D.HEURISTIC, sub.previous)
-        replanned = dec.left & (first != D.KEEP)
-        dec.replay(dec.left & (first >= D.KEEP), booked)
-        alloc = D.decode(dec, self.net.tr, emb, choose, residual=self.settings.learned,
-                         trace=trace)
+        replanned = dec.left[mine] & (first != D.KEEP)
+        kept = np.zeros_like(dec.left)
+        kept[mine] = dec.left[mine] & (first >= D.KEEP)
+        dec.replay(kept, booked.take(plans))
+        decoded = D.decode(dec, self.net.tr, emb_plans, choose,
+                           residual=self.settings.learned, trace=trace)
         # the decoder's allocation holds the decoded POIs; the booked ones take their triples
-        alloc = booked.where(first >= D.KEEP, alloc)
+        alloc = booked.where(first >= D.KEEP, decoded.take(mine))
         if self.settings.replan_in_full:
-            # the decoder copies what it changes, so the re-plan starts from the same start
-            again = Decoder(start, sub.reallocatable, fatigue, util, settings,
-                            previous=sub.previous)
-            alloc, full = self._or_full_replan(sub, again, emb, alloc)
-            replanned = replanned | (full[:, None] & sub.reallocatable)
+            full = decoded.take(mine + E) if one_pass else D.decode(
+                Decoder(start, sub.reallocatable, fatigue, util, decode_settings(ctx),
+                        previous=sub.previous), self.net.tr, emb, D.argmax_chooser,
+                residual=self.settings.learned)
+            alloc, took = self._or_full_replan(sub, full, alloc)
+            replanned = replanned | (took[:, None] & sub.reallocatable)
         self.planned_attrs[rows] = np.where(replanned[..., None], attrs,
                                             self.planned_attrs[rows])
         out.robot[rows], out.navigator[rows], out.classifier[rows] = \
             alloc.robot, alloc.navigator, alloc.classifier
         return out
 
-    def _or_full_replan(self, sub: DecisionContext, dec: Decoder,
-                        emb: dict[str, torch.Tensor], alloc: Allocation
+    def _or_full_replan(self, sub: DecisionContext, full: Allocation, alloc: Allocation
                         ) -> tuple[Allocation, np.ndarray]:
-        """`alloc` or a full re-plan decoded afresh by `dec` (a fresh decoder of every
-        reallocatable POI), per scenario, whichever greedy's model of worth (expected points
-        less human time and re-tasking) prefers; `alloc` wins ties. The re-plan takes the mode
-        and is not recorded: to pi_TR's training it is part of the environment. Returns the
-        allocation and which scenarios took the re-plan."""
-        full = D.decode(dec, self.net.tr, emb, D.argmax_chooser, residual=self.settings.learned)
+        """`alloc` or `full`, a full re-plan decoded afresh (every reallocatable POI, by the
+        mode of the scorers), per scenario, whichever greedy's model of worth (expected points
+        less human time and re-tasking) prefers; `alloc` wins ties. The re-plan is not
+        recorded: to pi_TR's training it is part of the environment. Returns the allocation
+        and which scenarios took the re-plan."""
         cost, at, price = retask_cost(sub), plan_start(sub), self.greedy.s.human_time_cost
         # both in one projection (the re-plan's rows where it differs from `alloc`)
         worth_alloc, worth_full = worth_many(sub, at, [alloc, full], sub.reallocatable, cost,
                                              price).T
         take = worth_full > worth_alloc + 1e-9
         return full.where(take[:, None] & sub.reallocatable, alloc), take
-
-
-def condition_features(policy: CTRPolicy, ctx: DecisionContext
-                       ) -> tuple[np.ndarray, np.ndarray]:
-    """pi_C's inputs beside the state embedding, (B, COND_FEATURES), and its prior (B,): +1
-    where the observation shows a robot newly down or a POI's kind or difficulty newly changed
-    (the ``on_event`` rule), else -1."""
-    S, seen = ctx.observed, policy.seen
-    B, P = ctx.reallocatable.shape
-    R = ctx.sizes.robots
-    T = ctx.clock.n_epochs
-    working = seen["robots"][..., 3] > 0.5
-    attrs = np.stack([S["tasks"].col("kind"), S["tasks"].col("difficulty")], -1)
-    if policy.prev_working is None:
-        est = ctx.inherent["tasks"]
-        policy.prev_working = np.ones_like(working)
-        policy.prev_attrs = np.stack([est.col("kind"), est.col("difficulty")], -1)
-        policy.planned_attrs = policy.prev_attrs.copy()
-        policy.greedy_attrs = policy.prev_attrs.copy()
-        policy.last_realloc = np.zeros(B)
-    failed = (policy.prev_working & ~working)
-    changed = (attrs != policy.prev_attrs).any(-1)
-    event = failed.any(1) | changed.any(1)
-    policy.prev_working, policy.prev_attrs = working, attrs
-    prev = ctx.previous
-    held_by_down = (ctx.reallocatable & ~np.take_along_axis(working, prev.robot, 1)).sum(1)
-    util = 1.0 - seen["humans"][..., 2]
-    unvisited = S["tasks"].col("unvisited")
-    feats = np.stack([event.astype(float), failed.sum(1) / R, changed.sum(1) / P,
-                      held_by_down / P, np.full(B, ctx.epoch / T),
-                      (ctx.epoch - policy.last_realloc) / T, util.mean(1), util.max(1),
-                      util.min(1), unvisited.mean(1)], -1)
-    assert feats.shape[1] == COND_FEATURES
-    return feats.astype(np.float32), np.where(event, 1.0, -1.0).astype(np.float32)
 
 
 class AuxReconstructor:

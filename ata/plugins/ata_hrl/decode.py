@@ -10,7 +10,8 @@ import numpy as np
 import torch
 
 from ata.core.state import Allocation
-from ata.plugins.ata_hrl.decoder import Decoder, StepInputs
+from ata.plugins.ata_hrl.decoder import Decoder
+from ata.plugins.ata_hrl.inputs import StepInputs
 from ata.plugins.ata_hrl.network import KINDS, AllocationNet, step_context
 
 Chooser = Callable[[str, torch.Tensor], np.ndarray]
@@ -95,58 +96,105 @@ def _tensors(inp: StepInputs, mask: np.ndarray) -> tuple[torch.Tensor, ...]:
             torch.from_numpy(mask))
 
 
+SHRINK = 0.75
+"""A decode without a trace goes on with the episodes still deciding once at most this share
+of its working set is (a finished episode's choices are masked: dropping it changes none)."""
+
+
 def decode(dec: Decoder, net: AllocationNet, emb: dict[str, torch.Tensor], choose: Chooser,
            *, residual: bool = True, trace: DecodeTrace | None = None) -> Allocation:
-    """Decode every POI left in `dec` with the network's scorers (no gradient)."""
-    E = dec.E
-    zeros = np.zeros(E, np.int64)
-    rows = torch.arange(E)
+    """Decode every POI left in `dec` with the network's scorers (no gradient). Without a
+    trace, and taking the mode, the steps work on the episodes still deciding alone."""
+    root, rows_in_root = dec, np.arange(dec.E)
+    shrink = trace is None and choose is argmax_chooser
     # inference mode: nothing decoded here is differentiated (a trainer recomputes the log-
     # probabilities from the trace), and torch skips its autograd bookkeeping per call
     with torch.inference_mode():
-        cands = {k: net.candidates(k, emb) for k in KINDS}
-        # the candidates are the same at every step: their projection once per decode
-        cand_hidden = {k: net.scorers[k].cand(cands[k]) if residual else None for k in KINDS}
-        # the context tokens as flat (E N, d) rows, read by index_select (far cheaper per call
-        # than indexing (E, N, d) by two index tensors; the same rows)
-        tokens = {g: (emb[g].reshape(E * emb[g].shape[1], -1), rows * emb[g].shape[1])
-                  for g in ("tasks", "robots")}
-
-        def pick(kind: str, inp: StepInputs, mask: np.ndarray, active: np.ndarray, robot, task):
-            inp = _clean(inp)
-            feats, prior, m = _tensors(inp, mask)
-            r = torch.from_numpy(robot if robot is not None else zeros)
-            t = torch.from_numpy(task if task is not None else zeros)
-            ctx = _context(kind, tokens, r, t)
-            n = m.shape[1]
-            cand, hid = cands[kind], cand_hidden[kind]
-            if n != cand.shape[1]:
-                cand, hid = cand[:, :n], None
-            # the POI step scores the legal POIs' hidden layers alone (a few of all P by the
-            # end of a decode); the other steps have few candidates
-            legal = torch.from_numpy(np.flatnonzero(mask)) if kind == "poi" and residual \
-                else None
-            logits = net.scorers[kind](feats, cand, ctx, prior, m, residual, cand_hidden=hid,
-                                       legal=legal)
-            choice = choose(kind, logits)
-            if trace is not None:
-                trace.add(kind, inp, mask, choice, active, robot, task)
-            return choice
-
+        steps = _Steps(net, emb, choose, residual, trace)
         while True:
             pi = dec.poi_inputs()
             active = pi.active
-            if not active.any():
+            n_active = int(active.sum())
+            if n_active == 0:
                 break
-            p = pick("poi", pi, pi.mask, active, dec.r_ff, None)
+            if shrink and n_active <= SHRINK * dec.E:
+                keep = np.flatnonzero(active)
+                dec.put(root, rows_in_root)
+                dec, rows_in_root = dec.take(keep), rows_in_root[keep]
+                steps = steps.take(torch.from_numpy(keep))
+                pi = dec.poi_inputs()
+                active = pi.active
+            p = steps.pick("poi", pi, active, dec.r_ff, None)
             ri = dec.robot_inputs(p)
-            r = pick("robot", ri, ri.mask, active, None, p)
+            r = steps.pick("robot", ri, active, None, p)
             ni = dec.nav_inputs(p, r)
-            n = pick("nav", ni, ni.mask, active, r, p) - 1
+            n = steps.pick("nav", ni, active, r, p) - 1
             ci = dec.cls_inputs(p, r, n)
-            c = pick("cls", ci, ci.mask, active, r, p) - 1
+            c = steps.pick("cls", ci, active, r, p) - 1
             dec.commit(active, p, r, n, c)
-    return dec.finish()
+    if dec is not root:
+        dec.put(root, rows_in_root)
+    return root.finish()
+
+
+class _Steps:
+    """The network's side of a decode: the candidates' tokens, projected once, and the choice
+    of each sub-decision from its inputs."""
+
+    def __init__(self, net: AllocationNet, emb: dict[str, torch.Tensor], choose: Chooser,
+                 residual: bool, trace: DecodeTrace | None):
+        self.net, self.emb, self.choose = net, emb, choose
+        self.residual, self.trace = residual, trace
+        E = emb["tasks"].shape[0]
+        self.zeros = np.zeros(E, np.int64)
+        self.cands = {k: net.candidates(k, emb) for k in KINDS}
+        # the candidates are the same at every step: their projection once per decode
+        self.cand_hidden = {k: net.scorers[k].cand(self.cands[k]) if residual else None
+                            for k in KINDS}
+        # the context tokens as flat (E N, d) rows, read by index_select (far cheaper per call
+        # than indexing (E, N, d) by two index tensors; the same rows)
+        rows = torch.arange(E)
+        self.tokens = {g: (emb[g].reshape(E * emb[g].shape[1], -1), rows * emb[g].shape[1])
+                       for g in ("tasks", "robots")}
+
+    def take(self, rows: torch.Tensor) -> "_Steps":
+        """The same for episodes `rows` alone."""
+        out = _Steps.__new__(_Steps)
+        out.net, out.choose, out.residual, out.trace = (self.net, self.choose, self.residual,
+                                                        self.trace)
+        out.emb = {g: v.index_select(0, rows) for g, v in self.emb.items()}
+        E = rows.shape[0]
+        out.zeros = np.zeros(E, np.int64)
+        out.cands = {k: v.index_select(0, rows) for k, v in self.cands.items()}
+        out.cand_hidden = {k: None if v is None else v.index_select(0, rows)
+                           for k, v in self.cand_hidden.items()}
+        first = torch.arange(E)
+        out.tokens = {g: (out.emb[g].reshape(E * out.emb[g].shape[1], -1),
+                          first * out.emb[g].shape[1]) for g in ("tasks", "robots")}
+        return out
+
+    def pick(self, kind: str, inp: StepInputs, active: np.ndarray, robot, task) -> np.ndarray:
+        """The choice of sub-decision `kind` in every episode (recorded in the trace)."""
+        inp = _clean(inp)
+        mask = inp.mask
+        feats, prior, m = _tensors(inp, mask)
+        r = torch.from_numpy(robot if robot is not None else self.zeros)
+        t = torch.from_numpy(task if task is not None else self.zeros)
+        ctx = _context(kind, self.tokens, r, t)
+        n = m.shape[1]
+        cand, hid = self.cands[kind], self.cand_hidden[kind]
+        if n != cand.shape[1]:
+            cand, hid = cand[:, :n], None
+        # the POI step scores the legal POIs' hidden layers alone (a few of all P by the
+        # end of a decode); the other steps have few candidates
+        legal = torch.from_numpy(np.flatnonzero(mask)) if kind == "poi" and self.residual \
+            else None
+        logits = self.net.scorers[kind](feats, cand, ctx, prior, m, self.residual,
+                                        cand_hidden=hid, legal=legal)
+        choice = self.choose(kind, logits)
+        if self.trace is not None:
+            self.trace.add(kind, inp, mask, choice, active, robot, task)
+        return choice
 
 
 def _context(kind: str, tokens: dict[str, tuple[torch.Tensor, torch.Tensor]],

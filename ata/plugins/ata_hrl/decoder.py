@@ -12,82 +12,34 @@ Everything the decoder computes comes from what a policy may read: the inherent 
 the (reconstructed) observed state S and the model's tables, in expectation. For each candidate
 it gives the network features (times, image quality, success probability with fatigue and
 workload projected to the moment the work would start, expected points) and the score of the
-greedy heuristic as a prior (`ata.model.greedy_planner`'s rate of points per robot second, its
-net value of a classifier), so that the network with its learned part switched off decodes like
-greedy. The humans' projected load is the domain library's (`ata.model.load.HumanLoad`); the
-capture time and the fatigue floor are the plan start's (what the team models published).
+greedy heuristic as a prior (greedy's own scorer, `ata.model.greedy_score`: the rate of points
+per robot second, the net value of a classifier), so that the network with its learned part
+switched off decodes like greedy. The humans' projected load is the domain library's
+(`ata.model.load.HumanLoad`); the capture time and the fatigue floor are the plan start's (what
+the team models published).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import copy
 
 import numpy as np
 
 from ata.core.state import Allocation
-from ata.model import tables
-from ata.model.greedy_planner import HUMAN_TIME_COST, RATE_OFFSET_S
+from ata.model import greedy_score, tables
 from ata.model.load import HumanLoad
 from ata.model.plan import PlanStart
-from ata.model.team import WINDOW_S
+from ata.model.tables import MAX_POINTS
+from ata.plugins.ata_hrl.inputs import (CLS_FEATURES, NAV_FEATURES, POI_FEATURES,
+                                        ROBOT_FEATURES, DecodeSettings, StepInputs, _fill,
+                                        _quiet)
 
-POI_FEATURES = 18
-KEEP_FEATURES = 13
-ROBOT_FEATURES = 12
-NAV_FEATURES = 12
-CLS_FEATURES = 14
+__all__ = ["Decoder", "DecodeSettings", "StepInputs", "POI_FEATURES", "SHORTLIST"]
 
-
-def _quiet(method):
-    """Numpy's warnings off: episodes whose decoding is over carry dummy choices (inf - inf)."""
-    import functools
-
-    @functools.wraps(method)
-    def wrapper(*args, **kwargs):
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return method(*args, **kwargs)
-
-    return wrapper
-
-
-def _fill(out: np.ndarray, parts: list) -> np.ndarray:
-    """Write `parts` side by side along `out`'s last axis and return `out` (float32): each part
-    a column (broadcast to ``out.shape[:-1]``) or a block of columns (``out.ndim`` dimensions),
-    cast as ``astype`` casts: the features np.stack and astype would give, without their
-    intermediate arrays (the decoder builds four such arrays at each of a decode's steps)."""
-    i = 0
-    for part in parts:
-        if np.ndim(part) == out.ndim:
-            w = part.shape[-1]
-            out[..., i:i + w] = part
-            i += w
-        else:
-            out[..., i] = part
-            i += 1
-    assert i == out.shape[-1]
-    return out
-
-
-@dataclass(frozen=True)
-class DecodeSettings:
-    """The constants the decoder assumes beside the plan start's: the human model's utilisation
-    window and re-brief, and the greedy heuristic's prices (for the priors)."""
-
-    window_s: float = WINDOW_S
-    human_time_cost: float = HUMAN_TIME_COST
-    rate_offset_s: float = RATE_OFFSET_S
-    rebrief_s: float = 0.0
-
-
-@dataclass
-class StepInputs:
-    """One sub-decision for every episode: candidate features (E, N, F), legal candidates
-    (E, N), the heuristic prior (E, N), and which episodes decide at all (E,)."""
-
-    features: np.ndarray
-    mask: np.ndarray
-    prior: np.ndarray
-    active: np.ndarray
+SHORTLIST = 48
+"""The POI step weighs the POIs greedy's prior ranks among the 48 best of an episode: the shipped
+networks chose none beyond the 46th (none beyond the 13th in (a)) in the POI steps counted, and
+the learned part of a step stops growing with the POIs left."""
 
 
 class Decoder:
@@ -140,6 +92,26 @@ class Decoder:
         self._ev_onboard = tables.expected_points(self.points[:, None, :],
                                                   tables.P_RC[q_all, start.diff[:, None, :]])
 
+    _ROWS = ("left", "robot", "nav", "cls", "robot_free", "robot_xy", "robot_done",
+             "n_assigned", "touched", "high", "points", "tx", "ty", "prev_valid", "_ev_onboard")
+    """The per-episode arrays beside the start, the load and the allocation in force."""
+
+    def take(self, rows: np.ndarray) -> "Decoder":
+        """The decoding state of episodes `rows` alone, to go on decoding those (a copy)."""
+        out = copy.copy(self)
+        for name in self._ROWS:
+            setattr(out, name, getattr(self, name)[rows])
+        out.start, out.load = self.start.take(rows), self.load.take(rows)
+        out.human_free = out.load.free
+        out.previous = None if self.previous is None else self.previous.take(rows)
+        out.E, out.e = rows.size, np.arange(rows.size)
+        return out
+
+    def put(self, into: "Decoder", rows: np.ndarray) -> None:
+        """Write what this decoder (of `into`'s episodes `rows`) has decided into `into`."""
+        for name in ("left", "robot", "nav", "cls", "robot_free"):
+            getattr(into, name)[rows] = getattr(self, name)
+
     def replay(self, kept: np.ndarray, alloc: Allocation | None = None) -> None:
         """Book the POIs in `kept` (E, P) with their triples in `alloc` (default: the previous
         allocation), as the robots will visit them (the robot free first goes to its nearest
@@ -188,18 +160,22 @@ class Decoder:
         p_g, fin_g, _, _, _, _ = self.load.classification(q, d, arrive, greedy=True, rows=rows)
         free = self.human_free if rows is None else self.human_free[rows]
         delay = np.maximum(free[:, None, :] - t_ref[:, None, None], 0.0)
-        net = (tables.expected_points(pts[..., None], p_g)
-               - self.s.human_time_cost * (tables.T_BAR[q, d][..., None] + delay))
+        net = greedy_score.human_net(tables.expected_points(pts[..., None], p_g),
+                                     tables.T_BAR[q, d][..., None], delay,
+                                     self.s.human_time_cost)
         return net, fin_g
 
-    def _best_net(self, net: np.ndarray, fin: np.ndarray) -> np.ndarray:
-        """The best human's net value (E, N), 0 where that human would finish too late."""
+    def _option_value(self, net: np.ndarray, fin: np.ndarray, onboard: np.ndarray
+                      ) -> np.ndarray:
+        """Greedy's worth of each option (E, N) (`greedy_score.option_value`): the best human
+        by net value (first on ties), or onboard."""
         best = net.argmax(-1)
         # the best human's entries by flat takes (cheaper than take_along_axis; ravel is a view
         # of these freshly computed arrays)
         at = np.arange(best.size) * net.shape[-1] + best.ravel()
-        return np.where(fin.ravel().take(at).reshape(best.shape) <= self.horizon,
-                        net.ravel().take(at).reshape(best.shape), 0.0)
+        return greedy_score.option_value(net.ravel().take(at).reshape(best.shape),
+                                         fin.ravel().take(at).reshape(best.shape),
+                                         self.horizon, onboard)
 
     # -- sub-decisions ---------------------------------------------------------------------------
     def keep_inputs(self, expected: np.ndarray, finish: np.ndarray, changed: np.ndarray,
@@ -224,11 +200,11 @@ class Decoder:
         lb, lp = np.nonzero(self.left)
         np.add.at(load, (lb, prev.robot[lb, lp]), 1.0)
         held = np.take_along_axis(load, prev.robot, axis=1)
-        feats = np.stack([self.prev_valid.astype(float), expected / 35.0,
+        feats = np.stack([self.prev_valid.astype(float), expected / MAX_POINTS,
                           np.clip((finish - self.now) / hz, 0, 2),
                           by_human.astype(float), (prev.navigator >= 0).astype(float),
                           np.where(by_human, util, 0.0), np.where(by_human, fat, 1.0),
-                          changed.astype(float), self.points / 35.0,
+                          changed.astype(float), self.points / MAX_POINTS,
                           np.full((E, P), (hz - self.now) / hz), held / max(P, 1),
                           np.isfinite(finish).astype(float), heuristic_keeps.astype(float)], -1)
         heuristic_ok = np.isfinite(np.take_along_axis(self.robot_free, heuristic.robot, axis=1))
@@ -241,8 +217,9 @@ class Decoder:
     @_quiet
     def poi_inputs(self) -> StepInputs:
         """Which POI next: features relative to the robot free first (the greedy robot). They
-        are computed for the legal (episode, POI) pairs alone, those left that some robot
-        reaches by the horizon: the others' logits are masked, and their features are zero."""
+        are computed for the legal (episode, POI) pairs alone: those left that some robot
+        reaches by the horizon and that greedy's prior ranks on the episode's shortlist (its
+        `SHORTLIST` best); the others' logits are masked, and their features are zero."""
         E, P, s, e = self.E, self.P, self.s, self.e
         free = np.where(self.robot_done, np.inf, self.robot_free)
         r_ff = free.argmin(axis=1)
@@ -280,25 +257,36 @@ class Decoder:
         q_o = np.stack([q_auto, q_nav], 1)
         cost = np.stack([np.zeros_like(leg_nav), s.human_time_cost * leg_nav], 1)
         at = np.minimum(arr_o, 1e12)
-        hum_net = self._best_net(*self._greedy_net(q_o, d[:, None], pts[:, None], at, t_ff,
-                                                   rows=ce))
         ev_on = np.stack([ev_auto, ev_navq], 1)
-        value = np.maximum(hum_net, ev_on) - cost
-        with np.errstate(invalid="ignore"):
-            rate = value / (arr_o - t_ff[:, None] + s.rate_offset_s)
+        value = self._option_value(*self._greedy_net(q_o, d[:, None], pts[:, None], at, t_ff,
+                                                     rows=ce), ev_on) - cost
+        rate = greedy_score.rate(value, arr_o - t_ff[:, None], s.rate_offset_s)
         rates = np.where(arr_o <= self.horizon, rate, -np.inf)
+        rate_ff = np.maximum(rates[:, 0], rates[:, 1])
+        prior[ce, cp] = np.where(np.isfinite(rate_ff), rate_ff, -1.0)
+        if P > SHORTLIST:
+            # the shortlist: the legal POIs the prior ranks among the SHORTLIST best of their
+            # episode (ties included), a function of the episode's own row
+            kth = -np.partition(-prior, SHORTLIST - 1, axis=1)[:, SHORTLIST - 1]
+            sel = np.flatnonzero(prior[ce, cp] >= kth[ce])
+            if sel.size < ce.size:
+                mask[ce, cp] = False
+                (ce, cp, rf, t_ff, arr_ff, arr_nav, ev_auto, ev_navq, rates, q_o, at, arr, reach,
+                 kind, d, pts) = (x[sel] for x in (ce, cp, rf, t_ff, arr_ff, arr_nav, ev_auto,
+                                                   ev_navq, rates, q_o, at, arr, reach, kind, d,
+                                                   pts))
+                mask[ce, cp] = True
+                c = np.arange(ce.size)
         # the learned features: the best human with workload and fatigue projected
         p_h, fin_h, _, _, _, _ = self.load.classification(q_o, d[:, None], at, rows=ce)
         ev_h = np.where(fin_h <= self.horizon,
                         tables.expected_points(pts[:, None, None], p_h), -np.inf)
-        hum_best = np.maximum(ev_h.max(-1), -35.0)
-        rate_ff = np.maximum(rates[:, 0], rates[:, 1])
-        prior[ce, cp] = np.where(np.isfinite(rate_ff), rate_ff, -1.0)
+        hum_best = np.maximum(ev_h.max(-1), -MAX_POINTS)
         # competition: how much sooner, and how much better onboard, another robot gets there
         others = reach
         others[c, rf] = False
         other_arr = np.where(others, arr, np.inf).min(axis=1)
-        ev_all = np.where(others, self._ev_onboard[ce, :, cp], -35.0).max(axis=1)
+        ev_all = np.where(others, self._ev_onboard[ce, :, cp], -MAX_POINTS).max(axis=1)
         hz = self.horizon
         left_share = self.left.sum(1)[ce] / max(P, 1)
         prev_feats = np.zeros((ce.size, 3))
@@ -308,11 +296,12 @@ class Decoder:
             prev_feats[:, 2] = self.previous.classifier[ce, cp] >= 0
         feats[ce, cp] = _fill(np.empty((ce.size, POI_FEATURES), np.float32), [
             np.clip((arr_ff - self.now) / hz, 0, 2), np.clip((arr_nav - self.now) / hz, 0, 2),
-            ev_auto / 35.0, ev_navq / 35.0, hum_best[:, 0] / 35.0, hum_best[:, 1] / 35.0,
+            ev_auto / MAX_POINTS, ev_navq / MAX_POINTS, hum_best[:, 0] / MAX_POINTS,
+            hum_best[:, 1] / MAX_POINTS,
             np.clip(np.where(np.isfinite(rates[:, 0]), rates[:, 0], -0.1) * 20, -2, 2),
             np.clip(np.where(np.isfinite(rates[:, 1]), rates[:, 1], -0.1) * 20, -2, 2),
-            np.clip((other_arr - arr_ff) / hz, -2, 2), (ev_all - ev_auto) / 35.0,
-            pts / 35.0, kind, d / 2.0, np.clip((hz - t_ff) / hz, 0, 1), left_share,
+            np.clip((other_arr - arr_ff) / hz, -2, 2), (ev_all - ev_auto) / MAX_POINTS,
+            pts / MAX_POINTS, kind, d / 2.0, np.clip((hz - t_ff) / hz, 0, 1), left_share,
             prev_feats])
         return StepInputs(feats, mask, prior, mask.any(axis=1))
 
@@ -333,7 +322,7 @@ class Decoder:
         feats = _fill(np.empty((E, R, ROBOT_FEATURES), np.float32), [
             np.clip((arr_p - self.now) / hz, 0, 2),
             np.clip((np.where(self.robot_done, hz, self.robot_free) - self.now) / hz, 0, 2),
-            travel_p / hz, ev / 35.0, is_ff, self.n_assigned / max(self.P, 1), prev_r,
+            travel_p / hz, ev / MAX_POINTS, is_ff, self.n_assigned / max(self.P, 1), prev_r,
             self.start.robot_type, np.eye(4)[q]])
         prior = is_ff.astype(float)
         return StepInputs(feats, mask, prior, mask.any(1))
@@ -355,11 +344,11 @@ class Decoder:
         q = tables.QUALITY[rtype[:, None], kind[:, None], skill]
         ev_on = tables.expected_points(pts[:, None], tables.P_RC[q, d[:, None]])
         # greedy's rate for each option (F_w = 1; the best human classifier at that quality)
-        hum_net = self._best_net(*self._greedy_net(
-            q, np.broadcast_to(d[:, None], q.shape), pts[:, None], arrive, t_r))
         human = np.arange(H + 1)[None, :] > 0
-        value = np.maximum(hum_net, ev_on) - np.where(human, s.human_time_cost * leg, 0.0)
-        rate = value / (arrive - t_r[:, None] + s.rate_offset_s)
+        value = self._option_value(*self._greedy_net(
+            q, np.broadcast_to(d[:, None], q.shape), pts[:, None], arrive, t_r), ev_on) \
+            - np.where(human, s.human_time_cost * leg, 0.0)
+        rate = greedy_score.rate(value, arrive - t_r[:, None], s.rate_offset_s)
         mask = np.concatenate([np.ones((E, 1), bool), self.high], 1) & (arrive <= self.horizon)
         mask[:, 0] = True
         hz = self.horizon
@@ -370,7 +359,7 @@ class Decoder:
             prev_n = (np.arange(H + 1)[None, :] == self.previous.navigator[e, p][:, None] + 1)
         feats = _fill(np.empty((E, H + 1, NAV_FEATURES), np.float32), [
             np.clip((arrive - self.now) / hz, 0, 2), np.clip((free - t_r[:, None]) / hz, 0, 2),
-            np.where(human, leg / hz, 0.0), ev_on / 35.0, np.clip(rate * 20, -2, 2), util,
+            np.where(human, leg / hz, 0.0), ev_on / MAX_POINTS, np.clip(rate * 20, -2, 2), util,
             prev_n, human[0], np.eye(4)[q]])
         prior = np.where(mask, rate, -1.0)
         return StepInputs(feats, mask, prior, np.ones(E, bool))
@@ -404,11 +393,11 @@ class Decoder:
         # one-hot columns
         own = CLS_FEATURES - 3
         feats = np.empty((E, H + 1, CLS_FEATURES), np.float32)
-        _fill(feats[:, 0, :own], [ev_on / 35.0, p_on, np.clip((arrive - self.now) / hz, 0, 2),
-                                  0.0, 0.0, 1.0, 1.0, 0.0, ev_on / 35.0, 0.0, 0.0])
-        _fill(feats[:, 1:, :own], [ev_h / 35.0, p_h, np.clip((fin - self.now) / hz, 0, 2),
+        _fill(feats[:, 0, :own], [ev_on / MAX_POINTS, p_on, np.clip((arrive - self.now) / hz, 0, 2),
+                                  0.0, 0.0, 1.0, 1.0, 0.0, ev_on / MAX_POINTS, 0.0, 0.0])
+        _fill(feats[:, 1:, :own], [ev_h / MAX_POINTS, p_h, np.clip((fin - self.now) / hz, 0, 2),
                                    np.clip((begin - arrive[:, None]) / hz, 0, 2), u, f_w, f_f,
-                                   t_bar[:, None] / hz, net_g / 35.0, rebrief, 1.0])
+                                   t_bar[:, None] / hz, net_g / MAX_POINTS, rebrief, 1.0])
         _fill(feats[..., own:], [prev_c, np.eye(4)[q][:, None, :2]])
         prior = np.concatenate([ev_on[:, None], net_g], 1)
         mask = np.ones((E, H + 1), bool)

@@ -1,9 +1,10 @@
 """Observations to the inputs of ATA-HRL's networks and decoder.
 
 Encoder tokens: the inherent information I (humans: eta, lambda, skill one-hot; robots: UAV, UGV,
-speed / 8; tasks: x, y, kind, difficulty one-hot, points / 35) and, when reallocating, the state S
-as the policy sees it (humans: working hours / 3, fatigue, idleness, SA; robots: x, y, idleness,
-working, has a target; tasks: unvisited, captured, classified, kind, difficulty one-hot).
+speed / 8; tasks: x, y, kind, difficulty one-hot, points / 35, the most a POI is worth) and,
+when reallocating, the state S as the policy sees it (`STATE_COLUMNS`: humans: working hours /
+3, fatigue, idleness, SA; robots: x, y, idleness, working, has a target; tasks: unvisited,
+captured, classified, kind, difficulty one-hot).
 
 "As the policy sees it": the raw observed S, or, where the mission's reconstructors give them,
 their estimates (the ``aux`` reconstructor's fatigue, robot and task rows). The w/o.AUX ablation
@@ -16,6 +17,7 @@ import numpy as np
 import torch
 
 from ata.core.state import DecisionContext, Observation
+from ata.model.tables import MAX_POINTS
 
 GROUPS = ("humans", "robots", "tasks")
 
@@ -32,12 +34,28 @@ def inherent_features(I: Observation) -> dict[str, np.ndarray]:
         "robots": np.stack([r.col("uav"), r.col("ugv"), r.col("speed") / 8.0], -1),
         "tasks": np.concatenate([np.stack([t.col("x"), t.col("y"), t.col("kind")], -1),
                                  onehot3(t.col("difficulty")),
-                                 (t.col("points") / 35.0)[..., None]], -1),
+                                 (t.col("points") / MAX_POINTS)[..., None]], -1),
     }
 
 
+STATE_COLUMNS = {
+    "humans": ("working_time", "fatigue", "idleness", "sa"),
+    "robots": ("x", "y", "idleness", "working", "has_target"),
+    "tasks": ("unvisited", "captured", "classified", "kind", "difficulty_low",
+              "difficulty_medium", "difficulty_high"),
+}
+"""The columns of `state_features`, by group, in order (working_time in units of 3 hours)."""
+
+
+def state_column(feats: dict[str, np.ndarray], group: str, name: str) -> np.ndarray:
+    """Column `name` of `group` in features laid out as `state_features` lays them out (the
+    raw S's, or a reconstructor's estimate in the same space)."""
+    return feats[group][..., STATE_COLUMNS[group].index(name)]
+
+
 def state_features(S: Observation, fatigue: np.ndarray | None = None) -> dict[str, np.ndarray]:
-    """S as features; `fatigue` (B, H) replaces the observed fatigue column when given."""
+    """S as features (the columns of `STATE_COLUMNS`); `fatigue` (B, H) replaces the observed
+    fatigue column when given."""
     h, r, t = S["humans"], S["robots"], S["tasks"]
     f = h.col("fatigue") if fatigue is None else fatigue
     return {

@@ -22,8 +22,8 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from ata.plugins.ata_hrl.decoder import (CLS_FEATURES, KEEP_FEATURES, NAV_FEATURES,
-                                         POI_FEATURES, ROBOT_FEATURES)
+from ata.plugins.ata_hrl.inputs import (CLS_FEATURES, KEEP_FEATURES, NAV_FEATURES,
+                                        POI_FEATURES, ROBOT_FEATURES)
 from ata.plugins.ata_hrl.features import GROUPS
 from ata.plugins.ata_hrl.status import STATUS_FEATURES
 
