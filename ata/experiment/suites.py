@@ -4,7 +4,7 @@ key (docs/evaluation.md, "Suites"). A plain mission file reads as a one-method s
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +21,8 @@ SUITE_KEYS = {"name": "a label for the evaluation",
               "pairs": "the paired differences the suite is about, [[A, B], ...]: A - B in "
                        "the paired table of `ata report --markdown`"}
 METHOD_KEYS = {"name": "the method's label in results and reports",
-               "mission": "its mission file, relative to the suite file, or builtin:NAME",
+               "mission": "its mission file, relative to the suite file, or builtin:NAME, or "
+                          "published:METHOD (published rows, not run again)",
                "set": "--set overrides applied to the mission",
                "plugins": "optional plugins to load",
                "settings": "team settings for this method (instead of the suite's)",
@@ -83,19 +84,28 @@ def _unknown(table: dict, allowed: dict, where: str, path: str) -> None:
 
 
 def _mission_path(spec: str, base: Path, where: str, path: str) -> str:
+    if spec.startswith("published:"):          # published rows (ata.experiment.published)
+        from ata.experiment.published import method_spec
+        return method_spec(spec, base, where, path)
     if spec.startswith("builtin:"):
         target = BUILTIN_MISSIONS / f"{spec.split(':', 1)[1]}.toml"
     else:
         target = Path(spec).expanduser()
         if not target.is_absolute():
             target = base / target
+    if target.is_dir():                 # an `ata train` folder: expanded by load_suite
+        return str(target)
     if not target.is_file():
         raise MissionError(where, "mission", f"no such mission file: {target}", file=path)
     return str(target)
 
 
 def load_suite(path: str | Path) -> Suite:
-    """Read a suite file, or a mission file (a table [mission]) as a one-method suite."""
+    """Read a suite file, or a mission file (a table [mission]) as a one-method suite; an `ata
+    train` folder is the suite of its seeds against greedy, or its run's trained weights."""
+    if Path(path).is_dir():             # an `ata train` folder: its suite, or its mission
+        from ata.training.seeds import trained_suite
+        path = trained_suite(path)
     path = str(path)
     raw = mission_mod.read_toml(path)
     if "suite" not in raw and "method" not in raw:
@@ -168,5 +178,10 @@ def load_suite(path: str | Path) -> Suite:
                 raise MissionError(where, "set", f"{text!r}: the evaluation sets mission."
                                    f"{keys[1]} itself (use the suite's settings, uncertainty, "
                                    "scenarios and seed)", file=path)
+        if Path(spec.mission).is_dir():  # its trained weights; each seed's, a method each
+            from ata.training.seeds import trained_methods
+            suite.methods += [replace(spec, name=n, mission=m)
+                              for n, m in trained_methods(spec.mission, spec.name)]
+            continue
         suite.methods.append(spec)
     return suite

@@ -16,12 +16,18 @@ train MISSION` builds it as ``factory(settings, mission, registry)`` and calls `
         def done_steps(self) -> int: ...                            # for the progress bar
         def run(self, run: TrainRun, resume: bool = False) -> dict: ...
 
+Two optional members: ``presets`` (a class attribute, ``{name: {key: value}}`` of the trainer's
+table: ``ata train --preset NAME``, ``ata.training.presets``) and ``trained_components()`` (the
+components whose ``checkpoint`` key best.pt serves: the run folder's resolved mission names it,
+so ``ata run RUN_DIR`` evaluates the trained weights).
+
 ``scenario_ranges`` lists every (root seed, scenario id range) the training may draw; the trainer
 records it in each checkpoint, the components it trains report it through the
 ``ata_trained_on`` hook, and `ata eval` refuses to evaluate a method on any scenario in it.
 Training ids must stay below ``TRAINING_ID_LIMIT`` (evaluation ids start at 2**40).
 
-``TrainRun`` is the run folder: the resolved mission, ``log.csv`` (one row per step), and
+``TrainRun`` is the run folder: the resolved mission, ``log.csv`` (one row per step, and the
+same scalars in TensorBoard event files where the ``tensorboard`` package is installed), and
 checkpoints written atomically (a temporary file, then a rename), so a killed run resumes from
 its last checkpoint with ``ata train --resume DIR``. ``PhaseLoop`` runs a trainer's phases
 (``Phase``) over it: counters, log rows, validation, best.pt, checkpoints and resume, the same

@@ -1,4 +1,5 @@
-"""A training run's folder: its resolved mission, log.csv, and checkpoints written atomically."""
+"""A training run's folder: its resolved mission, log.csv (and the same scalars as TensorBoard
+event files, when the ``tensorboard`` package is installed), and checkpoints written atomically."""
 
 from __future__ import annotations
 
@@ -20,14 +21,28 @@ class TrainRun:
         without a checkpoint.pt, whose run starts over): the rows of steps that the resumed run
         does again are not left twice in log.csv.
     :param on_row: told of every logged row (the progress bar).
+    :param tensorboard: also write every row's numeric columns as TensorBoard scalars (tag: the
+        column; step: the step counted across phases, each phase after the one before, as `ata
+        report` draws it) to event files in the folder, if the ``tensorboard`` package is
+        installed (``tensorboard_missing`` says it was not). A resumed run hides the scalars of
+        the rows it cut from log.csv (TensorBoard's ``purge_step``).
     """
 
     def __init__(self, run_dir: str | Path, mission_toml: str, fields: list[str], *,
-                 resume: bool = False, on_row: Callable[[dict], None] | None = None):
+                 resume: bool = False, on_row: Callable[[dict], None] | None = None,
+                 tensorboard: bool = True):
         self.dir = Path(run_dir)
         self.fields = list(fields)
         self.on_row = on_row
         self.rows = 0
+        self.tensorboard = tensorboard
+        self.tensorboard_missing = False
+        self._writer: Any = None
+        self._phase: str | None = None        # the step across phases of the last row logged
+        self._offset = 0.0
+        self._phase_max = 0.0
+        self._last_x: float | None = None
+        self._purge: int | None = None        # resumed: hide the event files' later steps
         self._resumed: dict[str, Any] | None = None     # checkpoint.pt, read once on resume
         self.dir.mkdir(parents=True, exist_ok=True)
         if not resume:
@@ -56,6 +71,20 @@ class TrainRun:
             tmp = log.with_name(log.name + ".tmp")
             tmp.write_text("".join(lines[:1 + self.rows]), encoding="utf-8")
             os.replace(tmp, log)
+            for row in list(csv.DictReader(lines[:1 + self.rows]))[:self.rows]:
+                self._x(row)
+        self._purge = 0 if self._last_x is None else int(self._last_x) + 1
+
+    def _x(self, row: dict[str, Any]) -> float:
+        """The step of a row counted across phases (each phase after the one before)."""
+        phase, step = str(row.get("phase") or ""), float(row.get("step") or 0)
+        if phase != self._phase:
+            if self._phase is not None:
+                self._offset += self._phase_max
+            self._phase, self._phase_max = phase, 0.0
+        self._phase_max = max(self._phase_max, step)
+        self._last_x = self._offset + step
+        return self._last_x
 
     @property
     def resumes(self) -> bool:
@@ -88,7 +117,44 @@ class TrainRun:
         with open(self.dir / "log.csv", "a", newline="") as f:
             csv.DictWriter(f, fieldnames=self.fields).writerow(row)
         self.rows += 1
+        self._scalars(row)
         self.tell(row)
+
+    def _scalars(self, row: dict[str, Any]) -> None:
+        """The row's numeric columns (but ``step``) as TensorBoard scalars; empty ones are left
+        out, as in log.csv."""
+        x = self._x(row)
+        writer = self._tensorboard_writer()
+        if writer is None:
+            return
+        for key, value in row.items():
+            if key in ("phase", "step") or value in ("", None):
+                continue
+            try:
+                number = float(value)
+            except (TypeError, ValueError):
+                continue                                   # a text column, such as setting
+            writer.add_scalar(key, number, int(x))
+        writer.flush()
+
+    def _tensorboard_writer(self) -> Any:
+        if not self.tensorboard or self.tensorboard_missing:
+            return None
+        if self._writer is None:
+            try:
+                import tensorboard  # noqa: F401  (torch's writer needs the package)
+                from torch.utils.tensorboard import SummaryWriter
+            except ImportError:
+                self.tensorboard_missing = True
+                return None
+            self._writer = SummaryWriter(str(self.dir), purge_step=self._purge)
+        return self._writer
+
+    def close(self) -> None:
+        """Close the TensorBoard event file (if one was written)."""
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
 
     def tell(self, row: dict[str, Any]) -> None:
         """Tell the progress bar of a row without logging it (progress inside a long step)."""

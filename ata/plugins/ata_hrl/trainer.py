@@ -95,6 +95,10 @@ class ATAHRLTrainer:
 
     log_fields = LOG_FIELDS
     Settings = Settings
+    presets = {"smoke": {"aux_batches": 1, "aux_steps": 20, "batch_size": 3, "samples": 4,
+                         "ita_steps": 6, "ctr_steps": 2, "eval_every": 3, "eval_scenarios": 4,
+                         "checkpoint_every": 2}}
+    """``ata train --preset smoke``: every phase of the recipe, in about a minute of 2 cores."""
 
     def __init__(self, settings: Settings, mission: Any, registry: Any):
         self.s = settings
@@ -158,6 +162,18 @@ class ATAHRLTrainer:
             if other:
                 ranges += [r for r in trained_on(other, KIND) if r not in ranges]
         return ranges
+
+    def trained_components(self) -> list[str]:
+        """The components whose weights best.pt holds (their ``checkpoint`` key names it in the
+        run folder's resolved mission)."""
+        slots = self.mission.slots
+        names = [name for name, trained in ((slots.initial, self.trains_ita),
+                                             (slots.condition, self.trains_cond),
+                                             (slots.reallocation, self.trains_tr)) if trained]
+        if self.trains_aux:
+            names += [n for n in slots.reconstructors if _is(
+                self.registry.get("reconstructor", n, "").factory, AuxReconstructor)]
+        return list(dict.fromkeys(names))
 
     def phases(self) -> dict[str, int]:
         """The steps of each phase this mission trains (0: none)."""

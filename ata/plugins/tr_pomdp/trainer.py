@@ -170,6 +170,10 @@ class TRPOMDPTrainer:
 
     log_fields = LOG_FIELDS
     Settings = Settings        # the [tr_pomdp] table, shared with the policy
+    presets = {"smoke": {"batch_size": 4, "steps": 12, "updates": 4, "minibatch": 64,
+                         "eps_decay_steps": 8, "eval_every": 6, "eval_scenarios": 8,
+                         "checkpoint_every": 4}}
+    """``ata train --preset smoke``: the DQN phase in well under a minute of 2 cores."""
 
     def __init__(self, settings: Settings, mission: Any, registry: Any):
         self.t = settings
@@ -195,6 +199,10 @@ class TRPOMDPTrainer:
         t = self.t
         return [(t.seed, 0, max(1, t.steps) * t.batch_size),
                 (t.seed + VALIDATION_SEED_OFFSET, 0, t.eval_scenarios)]
+
+    def trained_components(self) -> list[str]:
+        """The component whose agents best.pt holds (the reallocation slot's)."""
+        return [self.mission.slots.reallocation]
 
     def total_steps(self) -> int:
         return self.t.steps

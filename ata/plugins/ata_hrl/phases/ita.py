@@ -34,6 +34,8 @@ class ItaPhase(PolicyPhase):
     """The ITA phase of a trainer (see the module's doc)."""
 
     name = "ita"
+    rewards_logged = ("R_ITA",)        # nothing is reallocated: R_C and R_TR do not apply
+    reallocates = False
 
     def lr(self) -> float:
         return self.tr.s.lr

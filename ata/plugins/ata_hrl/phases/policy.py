@@ -100,6 +100,10 @@ class PolicyPhase:
     learning rate and its loss."""
 
     name = ""
+    rewards_logged = ("R_ITA", "R_C", "R_TR")
+    """The paper's rewards that mean something in this phase (log.csv leaves the others empty)."""
+    reallocates = True
+    """Whether the phase's rollouts may reallocate (else log.csv's reallocations stays empty)."""
 
     def __init__(self, trainer: Host):
         self.tr = trainer
@@ -133,10 +137,12 @@ class PolicyPhase:
         record, rec = tr.rollout(mission, ids, self.name, train=True)
         R = rewards(record)
         loss = self.learn(rec, R)
-        return {"setting": setting, "loss": f"{loss:.4f}",
-                "mean_score": f"{R['total'].mean():.2f}", "R_ITA": f"{R['R_ITA'].mean():.2f}",
-                "R_C": f"{R['R_C'].mean():.2f}", "R_TR": f"{R['R_TR'].mean():.2f}",
-                "reallocations": f"{record.reallocated[:, 1:].sum(1).mean():.2f}"}, ids.size
+        columns = {"setting": setting, "loss": f"{loss:.4f}",
+                   "mean_score": f"{R['total'].mean():.2f}",
+                   **{key: f"{R[key].mean():.2f}" for key in self.rewards_logged}}
+        if self.reallocates:
+            columns["reallocations"] = f"{record.reallocated[:, 1:].sum(1).mean():.2f}"
+        return columns, ids.size
 
     def learn(self, rec: Recorder, R: dict[str, np.ndarray]) -> float:
         """The loss of a rollout and one update on it, on the trainer's update device;

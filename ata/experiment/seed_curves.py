@@ -1,0 +1,209 @@
+"""`ata report DIR` of a folder of seeds (`ata train --seeds N`): the learning curves across
+seeds (each column's mean over the seeds with a 95% band, the Student t interval of that mean),
+a table of each seed's best held-out validation, and, once `ata eval DIR -o DIR/eval` has run,
+each seed's best weights paired with greedy on the same scenarios and the interquartile mean
+(IQM) across seeds with a bootstrap interval over seeds and scenarios (as rliable does)."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ata.experiment.curves import CURVE_PANELS, TrainingLog, read_log
+from ata.experiment.folders import prepare_out_dir, writing
+from ata.experiment.report import md_table, pyplot, save_figure
+
+RESAMPLES = 2000
+
+
+@dataclass
+class SeedLogs:
+    """The logs of a folder of seeds (`ata.training.seeds`), in seed order."""
+
+    path: Path                     # the folder
+    seeds: list[int]
+    logs: list[TrainingLog]
+    dirs: list[Path]
+
+
+def read_seed_logs(folder: str | Path) -> SeedLogs:
+    from ata.training.seeds import read_seeds
+    data = read_seeds(folder)
+    logs = [read_log(d) for d in data["dirs"]]
+    return SeedLogs(Path(folder), data["seeds"], logs, data["dirs"])
+
+
+def across(seeds: SeedLogs, column: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(x, mean, half-width of the 95% band) of a column over the rows every seed logged it
+    (the same phase and step), x as the first seed's log counts it."""
+    keyed = []
+    for log in seeds.logs:
+        values = log.columns.get(column)
+        rows = {}
+        if values is not None:
+            for k, (_, first, end) in enumerate(log.phases):
+                for r in range(first, end):
+                    if math.isfinite(values[r]):
+                        rows[(k, float(log.columns["step"][r]))] = (float(log.x[r]), values[r])
+        keyed.append(rows)
+    common = sorted(set.intersection(*(set(r) for r in keyed)) if keyed else set())
+    x = np.array([keyed[0][key][0] for key in common])
+    v = np.array([[rows[key][1] for rows in keyed] for key in common]).reshape(len(common), -1)
+    mean = v.mean(1) if v.size else np.zeros(0)
+    n = v.shape[1]
+    if n < 2:
+        return x, mean, np.zeros_like(mean)
+    from scipy import stats
+    half = stats.t.ppf(0.975, n - 1) * v.std(1, ddof=1) / math.sqrt(n)
+    return x, mean, half
+
+
+def seeds_figure(plt, seeds: SeedLogs):
+    """fig_curves_seeds: a panel per kind of column, each column's mean over the seeds and its
+    95% band."""
+    panels: dict[str, list[str]] = {}
+    for log in seeds.logs:
+        for key, columns in log.panels().items():
+            panels.setdefault(key, [])
+            panels[key] += [c for c in columns if c not in panels[key]]
+    shown = [p for p in CURVE_PANELS if p[0] in panels]
+    ncols = 2 if len(shown) > 1 else 1
+    nrows = math.ceil(len(shown) / ncols)
+    fig, axes = plt.subplots(nrows, ncols, squeeze=False, layout="constrained",
+                             figsize=(5.6 * ncols, 3.0 * nrows))
+    axes = list(axes.ravel())
+    for ax in axes[len(shown):]:
+        ax.remove()
+    for (key, name, unit), ax in zip(shown, axes):
+        for column in panels[key]:
+            x, mean, half = across(seeds, column)
+            if not x.size:
+                continue
+            line, = ax.plot(x, mean, linewidth=1.2, marker="o" if key == "held_out" else None,
+                            markersize=3, label=f"{column} (mean of {len(seeds.seeds)})")
+            ax.fill_between(x, mean - half, mean + half, color=line.get_color(), alpha=0.2,
+                            linewidth=0)
+        ax.set_title(name, fontsize=10)
+        ax.set_ylabel(unit)
+        ax.set_xlabel("step, the phases one after another")
+        ax.grid(color="0.92", linewidth=0.6)
+        ax.legend(fontsize=7, loc="best")
+    fig.suptitle(f"Training curves over {len(seeds.seeds)} seeds: {seeds.path.name} "
+                 "(mean, 95% band)", fontsize=11)
+    return fig
+
+
+def best_rows(seeds: SeedLogs) -> tuple[list[str], list[list[str]]]:
+    """A row per seed: its best held-out validation (the one best.pt holds), the steps it
+    trained and its training time; then their mean with its 95% interval and their IQM."""
+    header = ["seed", "best held-out score (best.pt)", "steps", "training time, s", "folder"]
+    rows, best = [], []
+    for seed, folder in zip(seeds.seeds, seeds.dirs):
+        info = _trained(folder)
+        value = info.get("best_eval", math.nan)
+        best.append(value)
+        steps = sum(v for k, v in info.get("counters", {}).items() if k != "episodes")
+        rows.append([str(seed), f"{value:.2f}", str(steps) if info else "-",
+                     f"{info.get('wall_s', math.nan):.0f}", folder.name])
+    v = np.array([b for b in best if math.isfinite(b)])
+    if v.size:
+        half = _t_half(v)
+        rows.append(["mean (95% CI)", f"{v.mean():.2f} ± {half:.2f}", "", "", ""])
+        rows.append(["IQM", f"{iqm(v):.2f}", "", "", ""])
+    return header, rows
+
+
+def _trained(folder: Path) -> dict:
+    """trained.json of a finished seed, else what its best.pt says (a seed under way)."""
+    path = folder / "trained.json"
+    if path.is_file():
+        return json.loads(path.read_text(encoding="utf-8"))
+    if (folder / "best.pt").is_file():
+        from ata.training import read_checkpoint
+        data = read_checkpoint(folder / "best.pt")
+        return {"best_eval": float(data.get("best_eval", math.nan)),
+                "wall_s": float(data.get("wall_s", math.nan)),
+                "counters": dict(data.get("counters", {}))}
+    return {}
+
+
+def _t_half(v: np.ndarray) -> float:
+    if v.size < 2:
+        return math.nan
+    from scipy import stats
+    return float(stats.t.ppf(0.975, v.size - 1) * v.std(ddof=1) / math.sqrt(v.size))
+
+
+def iqm(values: np.ndarray) -> float:
+    """The interquartile mean: the mean of the middle half (rliable's; all of 1 to 3 values)."""
+    v = np.sort(np.asarray(values, dtype=float))
+    cut = int(math.floor(v.size * 0.25))
+    return float(v[cut:v.size - cut].mean())
+
+
+def paired_rows(seeds: SeedLogs, eval_dir: Path, reference: str = "greedy"):
+    """Each seed's best weights minus `reference` on the same scenarios (mean, 95% bootstrap
+    CI over scenarios), and the IQM of the seeds' mean differences with a 95% bootstrap CI that
+    resamples seeds and, within each, scenarios."""
+    from ata.experiment.results import bootstrap_ci, paired_values, read_results
+    res = read_results(eval_dir)
+    header = ["seed", "method", "cell", "scenarios", f"mean - {reference} (95% CI)"]
+    rows, diffs = [], []
+    for setting, level in [(s, lv) for s in res.settings for lv in res.levels]:
+        ref = res.select(reference, setting, level)
+        for seed in seeds.seeds:
+            name = next((m for m in res.methods if m.endswith(f" seed {seed}")), None)
+            if name is None or not ref.any():
+                continue
+            a, b = paired_values(res, ref, res.select(name, setting, level))
+            if not a.size:
+                continue
+            d = b - a
+            mean, low, high = bootstrap_ci(d)
+            diffs.append(d)
+            rows.append([str(seed), name, f"{setting}/{level}", str(d.size),
+                         f"{mean:+.2f} [{low:+.2f}, {high:+.2f}]"])
+    if diffs:
+        point = iqm(np.array([d.mean() for d in diffs]))
+        gen = np.random.default_rng(0)
+        boots = []
+        for _ in range(RESAMPLES):
+            pick = gen.integers(0, len(diffs), len(diffs))
+            boots.append(iqm(np.array([diffs[i][gen.integers(0, diffs[i].size,
+                                                             diffs[i].size)].mean()
+                                       for i in pick])))
+        low, high = np.quantile(boots, [0.025, 0.975])
+        rows.append(["IQM over seeds", "", "", str(sum(d.size for d in diffs)),
+                     f"{point:+.2f} [{low:+.2f}, {high:+.2f}]"])
+    return header, rows
+
+
+def write_seed_report(folder: str | Path, out_dir: str | Path | None = None,
+                      with_figures: bool = True) -> tuple[SeedLogs, list[Path]]:
+    """fig_curves_seeds.{png,svg} and curves.md of a folder of seeds."""
+    seeds = read_seed_logs(folder)
+    out = Path(out_dir) if out_dir is not None else seeds.path
+    prepare_out_dir(out, kind="report", reads=(seeds.path,))
+    written: list[Path] = []
+    with writing(out):
+        if with_figures:
+            plt = pyplot()
+            fig = seeds_figure(plt, seeds)
+            written = save_figure(fig, out, "fig_curves_seeds")
+            plt.close(fig)
+        lines = [f"# Training over {len(seeds.seeds)} seeds: {seeds.path.name}", "",
+                 "Each seed's best held-out validation (the score of its best.pt):", "",
+                 *md_table(*best_rows(seeds)), ""]
+        eval_dir = seeds.path / "eval"
+        if (eval_dir / "results.csv").is_file():
+            lines += ["Each seed's best.pt against greedy on the same scenarios (`ata eval` "
+                      "in eval/); the IQM's interval resamples seeds, then scenarios:", "",
+                      *md_table(*paired_rows(seeds, eval_dir)), ""]
+        lines += [f"![{p.stem}]({p.name})" for p in written if p.suffix == ".png"]
+        path = out / "curves.md"
+        path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return seeds, [path] + written

@@ -1,0 +1,163 @@
+"""Training as researchers do (docs/training.md): the smoke recipe for several seeds, their
+curves across seeds, TensorBoard scalars equal to log.csv, and the trained weights evaluated in
+one step (`ata run TRAIN_DIR`, a suite naming the training folder as a method)."""
+
+import csv
+import json
+import math
+
+import pytest
+
+from ata.runtime.inputs import file_digest
+
+TINY = ["--set", "ata_hrl.ita_steps=2", "--set", "ata_hrl.batch_size=1", "--set",
+        "ata_hrl.samples=2", "--set", "ata_hrl.eval_every=1", "--set",
+        "ata_hrl.eval_scenarios=2", "--set", "ata_hrl.checkpoint_every=1"]
+
+
+@pytest.fixture(scope="module")
+def seeds_dir(tmp_path_factory):
+    """The smoke recipe of the ITA alone for seeds 0 and 1, tiny, on the serial executor."""
+    from typer.testing import CliRunner
+    from ata.cli import app
+    out = tmp_path_factory.mktemp("train") / "seeds"
+    result = CliRunner(env={"COLUMNS": "200"}).invoke(app, [
+        "train", "--plugins", "ita", "--preset", "smoke", "--seeds", "2", "-e", "serial",
+        "-o", str(out), *TINY])
+    assert result.exit_code == 0, result.output
+    assert f"ata report {out}" in result.output and f"ata eval {out}" in result.output
+    return out
+
+
+def test_seeds_train_report_and_eval_against_greedy(seeds_dir, cli, tmp_path):
+    import torch
+    from ata.experiment.results import paired_values, read_results
+    assert json.loads((seeds_dir / "seeds.json").read_text())["seeds"] == [0, 1]
+    for s in (0, 1):
+        folder = seeds_dir / f"seed-{s}"
+        mission = (folder / "mission.resolved.toml").read_text()
+        assert "seed = %d" % s in mission and str(folder / "best.pt") in mission
+        assert "builtin:ata_hrl_a" not in mission    # names the trained weights, not the shipped
+        data = torch.load(folder / "checkpoint.pt", weights_only=True)
+        assert data["counters"]["ita"] == 2 and "optimizer" in data and "rng" in data
+    # the two seeds trained apart: different weights
+    a, b = (torch.load(seeds_dir / f"seed-{s}" / "best.pt", weights_only=True)["model"]
+            for s in (0, 1))
+    assert any(not torch.equal(a[k], b[k]) for k in a if k.startswith("ita."))
+
+    result = cli("report", seeds_dir)
+    assert result.exit_code == 0, result.output
+    report = (seeds_dir / "curves.md").read_text()
+    assert "| 0 |" in report and "| 1 |" in report and "IQM" in report
+    assert (seeds_dir / "fig_curves_seeds.png").stat().st_size > 0
+
+    suite = tmp_path / "suite.toml"
+    suite.write_text(f'[suite]\nname = "mine"\nsettings = ["a"]\nuncertainty = ["medium"]\n'
+                     f'[[method]]\nname = "mine"\nmission = "{seeds_dir}"\n'
+                     '[[method]]\nname = "greedy"\nmission = "builtin:greedy"\n')
+    out = tmp_path / "eval"
+    result = cli("eval", suite, "-n", "2", "-e", "serial", "-o", out, "-q")
+    assert result.exit_code == 0, result.output
+    res = read_results(out)
+    assert sorted(res.methods) == ["greedy", "mine seed 0", "mine seed 1"]
+    ref = res.select("greedy", "a", "medium")
+    for s in (0, 1):
+        mine, greedy = paired_values(res, ref, res.select(f"mine seed {s}", "a", "medium"))
+        assert mine.size == greedy.size == 2          # paired on the same two scenarios
+
+
+def test_run_train_dir_evaluates_the_trained_weights(seeds_dir, cli, tmp_path):
+    import tomllib
+    folder = seeds_dir / "seed-1"
+    result = cli("run", folder, "-n", "1", "-o", tmp_path / "run")
+    assert result.exit_code == 0, result.output
+    inputs = tomllib.loads((tmp_path / "run" / "plugins.toml").read_text())["inputs"]
+    assert inputs["attention.checkpoint"] == file_digest(str(folder / "best.pt"))
+    assert inputs["attention.checkpoint"] != file_digest("builtin:ata_hrl_a")
+
+
+def test_tensorboard_scalars_are_log_csv(seeds_dir):
+    pytest.importorskip("tensorboard")
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+    folder = seeds_dir / "seed-0"
+    with open(folder / "log.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    acc = EventAccumulator(str(folder), size_guidance={"scalars": 0})
+    acc.Reload()
+    for column in ("loss", "mean_score", "R_ITA", "eval_score", "eval_expected", "wall_s"):
+        want = [(int(r["step"]), float(r[column])) for r in rows if r[column] != ""]
+        got = [(e.step, e.value) for e in acc.Scalars(column)]
+        assert len(got) == len(want) > 0, column
+        for (s1, v1), (s2, v2) in zip(got, want):
+            assert s1 == s2 and math.isclose(v1, v2, rel_tol=1e-6), (column, s1, v1, v2)
+    # what does not apply in the ITA phase stays empty, in both
+    assert all(r["R_C"] == r["R_TR"] == r["reallocations"] == "" for r in rows)
+    assert not {"R_C", "R_TR", "reallocations"} & set(acc.Tags()["scalars"])
+
+
+def test_a_folder_of_seeds_resumes_as_a_whole(seeds_dir, cli, tmp_path):
+    """A seed that never started trains from its folder's mission, to the same weights and
+    log as before; a finished seed is left as it was."""
+    import shutil
+    import torch
+    copy = tmp_path / "seeds"
+    shutil.copytree(seeds_dir, copy)
+    for name in ("log.csv", "checkpoint.pt", "best.pt", "trained.json"):
+        (copy / "seed-1" / name).unlink()
+    for events in (copy / "seed-1").glob("events.out.tfevents.*"):
+        events.unlink()
+    before = (copy / "seed-0" / "log.csv").read_text()
+    result = cli("train", "--resume", copy, "-e", "serial")
+    assert result.exit_code == 0, result.output
+    assert (copy / "seed-0" / "log.csv").read_text() == before
+
+    def rows(folder):      # the columns that do not depend on the machine's speed
+        with open(folder / "log.csv", newline="") as f:
+            return [{k: v for k, v in r.items() if k not in ("episodes_per_s", "wall_s")}
+                    for r in csv.DictReader(f)]
+    assert rows(copy / "seed-1") == rows(seeds_dir / "seed-1")
+    a, b = (torch.load(d / "seed-1" / "best.pt", weights_only=True)["model"]
+            for d in (copy, seeds_dir))
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    # the copy's resolved missions name the original folder's weights: refused, not run
+    result = cli("run", copy / "seed-1", "-n", "1")
+    assert result.exit_code == 2 and "moved or copied" in result.output
+
+
+def test_without_tensorboard_training_logs_and_says_how_to_get_curves(tmp_path, monkeypatch,
+                                                                      capsys):
+    import importlib.util
+    import sys
+    from ata.cli.training import _curves_note
+    from ata.training import TrainRun
+    monkeypatch.setitem(sys.modules, "tensorboard", None)       # import tensorboard fails
+    run = TrainRun(tmp_path / "run", "", ["phase", "step", "loss"])
+    run.log({"phase": "ita", "step": 1, "loss": "0.5"})
+    run.close()
+    assert run.tensorboard_missing
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["log.csv",
+                                                                   "mission.resolved.toml"]
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name: None)
+    _curves_note(tmp_path / "run")
+    _curves_note(tmp_path / "run", done=True)
+    text = " ".join(capsys.readouterr().err.split())
+    assert text.count("pip install 'ata[tensorboard]'") == 1
+
+
+@pytest.mark.parametrize("plugins, phases", [(["ctr", "aux"], {"aux", "ita", "ctr"}),
+                                             (["ita"], {"ita"}), (["trp"], {"dqn"}),
+                                             (["ita", "trp"], {"dqn"})])
+def test_the_smoke_preset_trains_every_phase_of_the_recipe(plugins, phases):
+    from ata.experiment import runner
+    from ata.training.presets import preset_overrides
+    source = str(runner.training_mission_for(plugins))
+    recipe = runner.build_trainer(runner.load_session(source))
+    name = recipe.component_name
+    smoke = runner.build_trainer(runner.load_session(
+        source, preset_overrides(name, type(recipe), "smoke")))
+    if name == "ata_hrl":
+        full, small = recipe.phases(), smoke.phases()
+        assert {p for p, n in small.items() if n} == {p for p, n in full.items() if n} == phases
+    else:
+        assert phases == {"dqn"} and 0 < smoke.total_steps() < recipe.total_steps()
+    assert smoke.total_steps() < recipe.total_steps() / 10
