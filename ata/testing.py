@@ -395,3 +395,48 @@ def _same_runs(base: Trace, again: Trace, alone: Trace, ids: list[int]) -> None:
         for group in a:
             assert np.array_equal(a[group][0], b[group][-1]), (
                 f"epoch {k}: observed {group!r} of a scenario depends on its batch")
+
+
+def check_reference(kind: str, target: str, overrides: list[str] = (),
+                    plugins: list[str] = (), seed: int | None = None) -> str:
+    """`ata check --component KIND TARGET`: `check_component` on a component named by reference
+    (``PATH.py:Class``, ``module:Class``) or by its registered name; ``--set`` texts give its
+    settings (``NAME.KEY=V``) and the small mission's keys (``mission.KEY=V``). Returns the
+    component's name; raises AssertionError on a breach, MissionError on bad input."""
+    from ata.core import references
+    from ata.core.errors import MissionError
+    from ata.core.mission import parse_override
+    from ata.core.registry import KINDS
+
+    if kind not in KINDS:
+        raise MissionError("--component", None, f"unknown kind {kind!r}; kinds: "
+                           + ", ".join(KINDS))
+    if references.is_reference(target):
+        factory, _, _ = references.load(target, "--component")
+        name = references.component_name(factory)
+    else:
+        registry = collect_components(get_plugin_manager(optional=list(plugins)))
+        factory, name = registry.get(kind, target, "--component").factory, target
+    tables: dict[str, dict] = {"mission": {}, name: {}}
+    for text in overrides:
+        path, value = parse_override(text)
+        if path[0] not in tables or len(path) != 2:
+            raise MissionError("--set", text, f"sets [{name}] (the component's settings) or "
+                               "[mission] keys here")
+        tables[path[0]][path[1]] = value
+    check_component(kind, factory, name=name, settings=tables[name] or None,
+                    mission=tables["mission"] or None, reference=is_reference(factory),
+                    seed=seed)
+    return name
+
+
+def check_published_rows(spec: str = "published", per_cell: int = 2,
+                         methods: list[str] | None = None) -> None:
+    """Rerun a sample of a set of published rows (`ata.experiment.published.rerun_sample`: the
+    first and the last scenario of every method's cell, then evenly between) and raise
+    AssertionError naming every value that is not identical to the published one."""
+    from ata.experiment.published import rerun_sample
+    lines = [x for x in rerun_sample(spec, per_cell, methods) if not x.endswith("not rerun")]
+    if lines:
+        raise AssertionError(f"{len(lines)} rerun value(s) differ from the published rows of "
+                             f"{spec}:\n" + "\n".join(lines))

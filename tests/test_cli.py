@@ -281,7 +281,7 @@ def test_missing_file(cli, tmp_path, command):
 
 
 def test_directory_instead_of_a_file(cli, tmp_path):
-    assert_user_error(cli("check", tmp_path), f"error: {tmp_path}: is a directory")
+    assert_user_error(cli("check", tmp_path), f"error: {tmp_path}: a folder, not a mission file")
 
 
 @pytest.mark.parametrize("override, fragments", [

@@ -1,4 +1,4 @@
-"""Dynamics of the built-in models (MODEL.md sections 3 to 6), on tiny hand-built scenarios.
+"""Dynamics of the built-in models (docs/model.md to 6), on tiny hand-built scenarios.
 
 Each test builds a team of one to three humans and robots and a few POIs, overwrites the
 sampled state after ``reset()`` (positions, kinds, difficulties, human traits, the pre-drawn

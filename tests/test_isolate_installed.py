@@ -7,6 +7,7 @@ method run in-process."""
 
 from __future__ import annotations
 
+import hashlib
 import os
 import sys
 import uuid
@@ -26,6 +27,7 @@ pytestmark = pytest.mark.skipif(NO_SANDBOX is not None, reason=f"needs a sandbox
 SHORT = ["mission.scenarios=3", "mission.batch_size=3", "mission.horizon_s=600"]
 
 PLUGIN = '''
+import hashlib
 import os
 os.environ["{marker}"] = "imported in process %d" % os.getpid()
 
@@ -146,3 +148,46 @@ def test_a_method_whose_package_also_gives_the_world_is_refused(installed):
     with pytest.raises(MissionError, match=r"no installed package provides it.*ata\.components"):
         load_session("builtin:greedy", [*SHORT, "components.injectors=['nowhere_noise']"],
                      isolate=iso)
+
+
+# -- a method in a file of its own, named by reference ---------------------------------------------
+EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "policies"
+
+
+def test_a_method_in_a_file_runs_apart_and_the_host_never_loads_it(tmp_path, monkeypatch):
+    marker = f"ATA_TEST_FILE_{uuid.uuid4().hex[:8].upper()}"
+    monkeypatch.delenv(marker, raising=False)
+    code = (EXAMPLE / "nearest_capable.py").read_text()
+    policy = tmp_path / "nearest_capable.py"
+    policy.write_text(f'import os\nos.environ["{marker}"] = "loaded"\n' + code)
+    mission = tmp_path / "mine.toml"
+    mission.write_text((EXAMPLE / "nearest_capable.toml").read_text())
+    iso = isolate.require_sandbox(60)
+    loaded = set(sys.modules)
+    session = load_session(str(mission), SHORT + ["nearest_capable.any_type=true"], isolate=iso)
+    resolved = session.mission.to_toml()
+    assert 'initial = "nearest_capable"' in resolved and "any_type = true" in resolved
+    assert f'source = "{policy.resolve()}:NearestCapable"' in resolved
+    digest = hashlib.sha256(policy.read_bytes()).hexdigest()
+    assert f'sha256 = "{digest}"' in resolved
+    assert session.code()["policy nearest_capable"] == digest
+    with torch_one_thread():
+        apart = run_batch(session.mission, session.registry, np.arange(3), isolate=iso)
+        unit = run_unit(Unit(0, session.mission, np.arange(3), parallel=True, isolate=iso))
+    assert marker not in os.environ
+    assert not [m for m in set(sys.modules) - loaded if "nearest_capable" in m]
+    # the resolved mission runs apart again, and refuses the file once it has changed
+    again = tmp_path / "resolved.toml"
+    again.write_text(resolved)
+    assert load_session(str(again), isolate=iso).mission.to_toml() == resolved
+    inside_session = load_session(str(mission), SHORT + ["nearest_capable.any_type=true"])
+    assert marker in os.environ                     # the check above can fail
+    with torch_one_thread():
+        inside = run_batch(inside_session.mission, inside_session.registry, np.arange(3))
+    skip = ("warnings", "wall_s", f"m:{isolate.TIMEOUT_COLUMN}")
+    for key in (k for k in inside if k not in skip):
+        np.testing.assert_array_equal(np.asarray(inside[key]), np.asarray(apart[key]), key)
+        np.testing.assert_array_equal(np.asarray(unit[key]), np.asarray(apart[key]), key)
+    policy.write_text(policy.read_text() + "\n# edited\n")
+    with pytest.raises(MissionError, match="has changed since this mission was resolved"):
+        load_session(str(again), isolate=iso)

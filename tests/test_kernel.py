@@ -63,7 +63,7 @@ class Condition:
 
 
 def session(*, humans=1, robots=1, tasks=2, batch=1, condition="never", extra=()):
-    """A tiny mission with no uncertainty and free reallocation (the re-tasking cost of MODEL.md
+    """A tiny mission with no uncertainty and free reallocation (the re-tasking cost of the model
     section 3a has its own tests in test_dynamics.py)."""
     return load_session(str(BASELINE_MISSION), ["mission.setting='custom'", f"mission.humans={humans}",
                                "human.rebrief_s=0", "robot.replan_s=0",

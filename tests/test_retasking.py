@@ -1,4 +1,4 @@
-"""The re-tasking cost of MODEL.md section 3a: re-briefed humans, re-planned robots, on tiny
+"""The re-tasking cost of docs/model.md: re-briefed humans, re-planned robots, on tiny
 hand-built scenarios with the expected numbers worked out by hand in the comments; free
 reallocation when both costs are 0, bit for bit; greedy's keep rule.
 
@@ -246,7 +246,7 @@ def test_both_costs_zero_reproduce_free_reallocation_exactly(case):
                                      "mission.uncertainty='high'"]}[case]
     # The random policy of c1e16e6 drew from the world's generator, which no decision-maker
     # may reach now: the test hands the one it runs that generator itself.
-    # The code of c1e16e6 was of MODEL.md revision 2: spread 0, and its policies computed
+    # The code of c1e16e6 was of model revision 2: spread 0, and its policies computed
     # fatigue from the working hours, which the oracle's exact fatigue belief reproduces.
     golden = json.loads(GOLDEN.read_text())[case]
     s = load_session(str(BASELINE_MISSION), ["mission.scenarios=40", "mission.seed=77",

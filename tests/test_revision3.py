@@ -1,4 +1,4 @@
-"""MODEL.md revision 3: individual hidden fatigue, and its spread 0 giving revision 2 bit for bit.
+"""model revision 3: individual hidden fatigue, and its spread 0 giving revision 2 bit for bit.
 
 tests/data/rev2_golden.json holds per-scenario results of the code before individual fatigue
 (revision 2, commit 73f148f, run with this version's world generator, ata/core/rng.py), seed 0: ``random_a_high`` the random mission

@@ -1,6 +1,6 @@
-"""The tables and formulas of MODEL.md against hand-computed values.
+"""The tables and formulas of the model (docs/model.md) against hand-computed values.
 
-Every expected value here is a literal worked out by hand from MODEL.md (with exp() values
+Every expected value here is a literal worked out by hand from docs/model.md (with exp() values
 written out to 16 digits), never recomputed with the code under test.
 """
 
@@ -35,7 +35,7 @@ def test_codes():
 
 # --- Table I: image quality ---------------------------------------------------------------------
 
-# (robot, POI kind, navigator class) -> quality, cell by cell from MODEL.md section 4
+# (robot, POI kind, navigator class) -> quality, cell by cell from docs/model.md, "Robots"
 TABLE_I = [
     # UAV, ground POI: Low / Medium / Upper-Medium
     (0, 1, 0, LOW_Q), (0, 1, 1, MED_Q), (0, 1, 2, UM_Q),

@@ -1,5 +1,5 @@
 """Statistical tests of the four uncertainty injectors against the paper's three levels
-(MODEL.md section 6): low sigma^2 = 0.05, p = 0.1; medium 0.1, 0.2; high 0.2, 0.4.
+(docs/model.md: "Uncertainty"): low sigma^2 = 0.05, p = 0.1; medium 0.1, 0.2; high 0.2, 0.4.
 
 Each level runs one batch of 2000 scenarios of setting (a) for a few epochs (random initial
 allocation, no reallocation, to keep it fast). Tolerances are 5 standard errors of the

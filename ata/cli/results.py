@@ -72,14 +72,17 @@ def report(run_dir: List[Path] = typer.Argument(
 def compare(folders: List[Path] = typer.Argument(
                 ..., metavar="A [B]",
                 help="One `ata eval` folder (each method against --base), or two folders of "
-                     "`ata eval` or `ata run` (A - B, method by method)."),
+                     "`ata eval` or `ata run` (A - B, method by method); B may be published "
+                     "rows, published[:NAME|:PATH] (A against each published method, or "
+                     "--base)."),
             column: Optional[List[str]] = typer.Option(
                 None, "--column", "-c", metavar="COL",
                 help="A results.csv column: score (the default), expected_score, "
                      "reallocations, ... (repeatable)."),
             base: Optional[str] = typer.Option(
                 None, "--base", metavar="METHOD",
-                help="The method subtracted: of A (default greedy, else the first), or of B."),
+                help="The method subtracted: of A (default greedy, else the first), or of B; "
+                     "against published rows, NAME[,NAME] (default: every one)."),
             methods: Optional[str] = typer.Option(None, "--methods", metavar="NAME[,NAME]",
                                                   help="Only these methods of A."),
             power: bool = typer.Option(
@@ -93,6 +96,7 @@ def compare(folders: List[Path] = typer.Argument(
     the scenarios a CI needs to clear 0 (--power); or column means (--means)."""
     from ata.core.errors import MissionError
     from ata.experiment import compare as cmp
+    from ata.experiment import published
     from ata.experiment.results import read_results
 
     if len(folders) > 2:
@@ -100,6 +104,10 @@ def compare(folders: List[Path] = typer.Argument(
                            "(A - B): ata compare A [B]")
     if power and means:
         raise MissionError("--means", None, "give --power or --means, not both")
+    if len(folders) == 2 and published.is_published(folders[1]):
+        _against_published(folders, column, base, _split_or_none(methods), power, markdown,
+                           resamples)
+        return
     results = [read_results(f) for f in folders]
     columns = list(dict.fromkeys(column or ["score"]))
     if means:
@@ -113,6 +121,54 @@ def compare(folders: List[Path] = typer.Argument(
         print(cmp.markdown(tables), end="")
     for table in [] if markdown else tables:
         terminal.table(table.title, table.header, table.rows)
+
+def _against_published(folders: List[Path], column: Optional[List[str]], base: Optional[str],
+                       methods: Optional[List[str]], power: bool, markdown: bool,
+                       resamples: int) -> None:
+    """`ata compare A published[:NAME]`: A's methods against each published method (or
+    --base), on the published rows, after `published.check_pairing`."""
+    from ata.core.errors import MissionError
+    from ata.experiment import compare as cmp
+    from ata.experiment import published
+    from ata.experiment.results import read_results
+
+    mine = read_results(folders[0])
+    theirs, manifest, where = published.read_published(folders[1])
+    bases = _split(base) if base else list(theirs.methods)
+    unknown = [b for b in bases if b not in theirs.methods]
+    if unknown:
+        raise MissionError("--base", None, f"no published method {unknown[0]!r}; published: "
+                           + ", ".join(theirs.methods))
+    published.check_pairing(mine, folders[0], manifest, bases)
+    tables = []
+    for name in bases:
+        tables += cmp.compare(mine, theirs, list(dict.fromkeys(column or ["score"])),
+                              base=name, methods=methods, power=power, resamples=resamples)
+    if markdown:
+        print(cmp.markdown(tables), end="")
+        return
+    note(f"paired with the published rows in {where} (none rerun)")
+    for table in tables:
+        terminal.table(table.title, table.header, table.rows)
+
+
+@app.command()
+@user_errors
+def publish(eval_dir: Path = typer.Argument(..., metavar="EVAL_DIR",
+                                            help="An `ata eval` folder."),
+            out: Path = typer.Option(..., "--out", "-o", metavar="DIR",
+                                     help="The folder to write (rows.csv.gz, manifest.json); "
+                                          "ata/published/NAME ships it as published:NAME.")) \
+        -> None:
+    """Publish an evaluation's per-scenario rows with the code and weight digests, model
+    revision and scenarios they were made with, for `ata compare A published:NAME` to pair new
+    methods against without rerunning them (docs/evaluation.md, "Published rows")."""
+    from ata.experiment import published
+
+    folder = published.publish(eval_dir, out)
+    console.print(f"wrote {escape(str(folder / published.ROWS))}, "
+                  f"{escape(str(folder / published.MANIFEST))}", highlight=False)
+
 
 @app.command()
 @user_errors

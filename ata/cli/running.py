@@ -20,6 +20,9 @@ def run(mission: Optional[str] = typer.Argument(
                                           "built-in mission, setting (a), medium uncertainty."),
         set_: Optional[List[str]] = SetOption,
         plugins: Optional[str] = PluginsOption,
+        scenarios: Optional[int] = typer.Option(None, "--scenarios", "-n", min=1, metavar="N",
+                                                help="Scenarios to run (default: the "
+                                                     "mission's; --set mission.scenarios=N)."),
         out: Optional[Path] = typer.Option(None, "--out", "-o", metavar="DIR",
                                            help="Run folder (default: runs/NAME-TIME)."),
         workers: Optional[int] = typer.Option(None, "--workers", "-w", min=1, metavar="N",
@@ -49,7 +52,8 @@ def run(mission: Optional[str] = typer.Argument(
     from ata.experiment.isolate import require_sandbox
 
     iso = require_sandbox(decision_timeout) if isolate else None
-    session = runner.load_session(mission, set_ or [], _split(plugins), isolate=iso)
+    overrides = list(set_ or []) + ([f"mission.scenarios={scenarios}"] if scenarios else [])
+    session = runner.load_session(mission, overrides, _split(plugins), isolate=iso)
     m = session.mission
     workers = workers or m.settings.workers
     # the components are built (checkpoints read) before any folder is made or scenario runs
@@ -147,13 +151,36 @@ def eval_(paths: List[str] = typer.Argument(
 
 @app.command()
 @user_errors
-def check(mission: str = typer.Argument(..., metavar="MISSION", help="Mission file (TOML)."),
+def check(mission: str = typer.Argument(
+              ..., metavar="MISSION|REFERENCE",
+              help="Mission file (TOML); with --component, a component: PATH.py:Class, "
+                   "module:Class or a registered name."),
           set_: Optional[List[str]] = SetOption,
           plugins: Optional[str] = PluginsOption,
-          show: bool = typer.Option(False, "--show", help="Print the resolved mission.")) -> None:
-    """Validate a mission file without running it."""
+          show: bool = typer.Option(False, "--show", help="Print the resolved mission."),
+          component: Optional[str] = typer.Option(
+              None, "--component", metavar="KIND",
+              help="Check a component of this kind (policy, condition, injector, ...) with "
+                   "ata.testing.check_component instead: --set NAME.KEY=V sets its settings, "
+                   "--set mission.KEY=V the small mission's."),
+          seed: Optional[int] = typer.Option(None, "--seed", min=0, metavar="N",
+                                             help="With --component: the root seed (default: "
+                                                  "drawn anew).")) -> None:
+    """Validate a mission file without running it; or, with --component, check that a
+    component keeps the contract (docs/plugins.md, "Checking a component")."""
     from ata.experiment import runner
 
+    if component is not None:
+        from ata.testing import check_reference
+        try:
+            name = check_reference(component, mission, set_ or [], _split(plugins), seed)
+        except AssertionError as exc:
+            from ata.experiment.terminal import err_console
+            err_console.print(f"[red]failed[/]: {escape(str(exc))}", highlight=False)
+            raise typer.Exit(1) from None
+        console.print(f"[green]ok[/]: {component} {escape(name)} ({escape(mission)}) keeps "
+                      "the contract", highlight=False)
+        return
     session = runner.load_session(mission, set_ or [], _split(plugins))
     m = session.mission
     runner.build_once(m, session.registry)   # a component that cannot fill its slot fails

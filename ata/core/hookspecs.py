@@ -157,7 +157,7 @@ def ata_allocation_changed(sim: "SimState", changed: np.ndarray,
     """React to a new allocation in ``sim.allocation``; ``changed`` (B, P) marks changed tasks.
 
     :param previous: the allocation in force before the change; None for the initial one.
-        The team models charge the re-tasking cost of MODEL.md section 3a from the difference.
+        The team models charge the re-tasking cost of docs/model.md from the difference.
     """
 
 

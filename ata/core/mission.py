@@ -9,17 +9,17 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import hashlib
-import os
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import tomli_w
 
+from ata.core import references as refs_mod
 from ata.core.errors import MissionError
 from ata.core.registry import Register
+from ata.core.seeds import SECRET_SEED_MIN, seed_hash, secret_seed  # noqa: F401
 from ata.core.settings import build_settings, param, settings_dict
 from ata.core.state import Clock, TeamSize
 
@@ -29,7 +29,7 @@ TEAM_SETTINGS = {"a": TeamSize(humans=6, robots=8, tasks=60),
 
 UNCERTAINTY_LEVELS = {"none": (0.0, 0.0), "low": (0.05, 0.1), "medium": (0.1, 0.2),
                       "high": (0.2, 0.4)}
-"""(fatigue noise variance, event probability) per level; MODEL.md section 6."""
+"""(fatigue noise variance, event probability) per level; docs/model.md, "Uncertainty"."""
 
 
 @dataclass
@@ -126,6 +126,25 @@ class Mission:
     component_settings: dict[str, Any]   # component name -> its Settings instance (or None)
     source: str = "<built-in>"
     secret_seed: bool = False            # the seed came from the environment: never written
+    references: dict[str, Any] = field(default_factory=dict)   # name -> references.Reference
+
+    def __getstate__(self) -> dict[str, Any]:
+        # a referenced component's settings travel as plain values: its class is loaded again
+        # from its file where the mission lands (a worker process), and checked unchanged
+        state = dict(self.__dict__)
+        if self.references:
+            state["component_settings"] = {n: settings_dict(v) if n in self.references and v
+                                           is not None else v
+                                           for n, v in self.component_settings.items()}
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        for name, factory in refs_mod.restore(state.get("references") or {}).items():
+            if isinstance(self.component_settings.get(name), dict):
+                self.component_settings[name] = build_settings(factory.Settings,
+                                                               self.component_settings[name],
+                                                               f"[{name}]")
 
     @property
     def seed_label(self) -> int | str:
@@ -194,6 +213,11 @@ class Mission:
         out["mission"]["seed"] = self.seed_label
         for name, st in self.component_settings.items():
             out[name] = settings_dict(st) if st is not None else {}
+        if self.references:
+            out[refs_mod.TABLE] = {n: r.table() for n, r in self.references.items()}
+        for name, st in self.component_settings.items():    # one run apart (--isolate)
+            if getattr(st, "reference", None):
+                out.setdefault(refs_mod.TABLE, {})[name] = dict(st.reference)
         return out
 
     def to_toml(self) -> str:
@@ -206,45 +230,6 @@ class Mission:
         if "seed" in mission_keys:
             m.secret_seed = False
         return m
-
-
-SECRET_SEED_MIN = 2**32
-"""A secret seed below it could be found from its hash by trying them all."""
-
-
-def seed_hash(seed: int) -> str:
-    """``secret:`` and the first 16 hex digits of the SHA-256 of the seed's decimal digits."""
-    return "secret:" + hashlib.sha256(str(int(seed)).encode()).hexdigest()[:16]
-
-
-def secret_seed(value: Any) -> int | None:
-    """The seed an ``env:NAME`` value names (read from the environment), None for any other
-    value; a MissionError naming the fix for a missing, malformed or guessable one, and for
-    the ``secret:`` label of a resolved file."""
-    if not isinstance(value, str):
-        return None
-    if value.startswith("secret:"):
-        raise MissionError("[mission]", "seed", f"{value!r} is the hash of a secret seed, not "
-                           "a seed: give the seed again as 'env:NAME', NAME an environment "
-                           "variable that holds it")
-    if not value.startswith("env:"):
-        return None
-    name = value[4:]
-    text = os.environ.get(name)
-    if not name or text is None:
-        raise MissionError("[mission]", "seed", f"{value!r} reads the environment variable "
-                           f"{name!r}, which is not set: export {name or 'NAME'}=N, N a secret "
-                           "integer (python -c 'import secrets; print(secrets.randbits(63))')")
-    try:
-        seed = int(text.strip())
-    except ValueError:
-        raise MissionError("[mission]", "seed", f"the environment variable {name!r} holds "
-                           "no integer") from None
-    if not SECRET_SEED_MIN <= seed < 2**63:
-        raise MissionError("[mission]", "seed", f"the secret seed in {name!r} must lie in "
-                           f"[2**32, 2**63): a smaller one is found from its hash by trying "
-                           "them all (python -c 'import secrets; print(secrets.randbits(63))')")
-    return seed
 
 
 MAX_DEPTH = 16
@@ -389,6 +374,8 @@ def _validate(raw: dict[str, Any], registry: Register, source: str) -> Mission:
     for table in ("mission", "components"):
         if table in raw and not isinstance(raw[table], dict):
             raise MissionError(f"[{table}]", None, "must be a table")
+    raw, references = refs_mod.resolve(raw, registry, source, dict([*SLOT_KINDS.items(),
+                                                                    TRAINER_SLOT]))
     head = raw.get("mission")
     secret = secret_seed(head.get("seed")) if isinstance(head, dict) else None
     if secret is not None:
@@ -461,7 +448,7 @@ def _validate(raw: dict[str, Any], registry: Register, source: str) -> Mission:
     # names every plugin it needs (worker processes load them up front from it)
     settings.plugins = list(dict.fromkeys([*settings.plugins, *registry.loaded]))
     return Mission(settings=settings, slots=slots, component_settings=component_settings,
-                   source=source, secret_seed=secret is not None)
+                   source=source, secret_seed=secret is not None, references=references)
 
 
 MAX_EPOCHS = 10_000

@@ -233,7 +233,7 @@ class Allocation:
         return cls(t[..., 0].copy(), t[..., 1].copy(), t[..., 2].copy())
 
     def matrix(self, n_robots: int, n_humans: int) -> np.ndarray:
-        """The allocation matrix of MODEL.md section 3: one-hot rows, (B, P, R + (1+H) + (1+H))."""
+        """The allocation matrix of docs/model.md: one-hot rows, (B, P, R + (1+H) + (1+H))."""
         B, P = self.robot.shape
         width = n_robots + 2 * (1 + n_humans)
         out = np.zeros((B, P, width), dtype=np.float32)
@@ -262,7 +262,7 @@ def frobenius_change(a: Allocation, b: Allocation) -> np.ndarray:
 
 @dataclass
 class EpisodeRecord:
-    """What the kernel keeps of an episode, enough to compute every reward of MODEL.md section 7."""
+    """What the kernel keeps of an episode, enough to compute every reward of docs/model.md."""
 
     r_perf: np.ndarray                  # (B, T) points gained in each epoch
     reallocated: np.ndarray             # (B, T) bool: a reallocation was made at epoch t

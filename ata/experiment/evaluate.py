@@ -153,6 +153,9 @@ def plan(paths: list[str], *, scenarios: int | None = None, seed: int | None = N
     if validate:
         for job in jobs:
             _validate_job(job, isolate)
+    if any(j.mission.source.startswith("published:") for j in jobs):
+        from ata.experiment.published import check_models
+        check_models(jobs)
     return suites, jobs
 
 
@@ -181,8 +184,14 @@ def _job(suite: Suite, spec: MethodSpec, setting: str | None, level: str | None,
     root = f"'{root}'" if isinstance(root, str) else int(root)    # 'env:NAME': secret
     overrides += [f"mission.seed={root}", f"mission.first_scenario={EVAL_FIRST_SCENARIO}"]
     try:
-        session = load_session(spec.mission, overrides, spec.plugins or None,
-                               isolate=isolate)
+        if spec.mission.startswith("published:"):       # rows read, not run
+            from ata.experiment.published import published_session
+            if spec.overrides or spec.plugins:
+                raise MissionError("", None, "a published method takes no set or plugins")
+            session = published_session(spec.mission, overrides)
+        else:
+            session = load_session(spec.mission, overrides, spec.plugins or None,
+                                   isolate=isolate)
     except MissionError as exc:
         raise _context(exc, suite.path, spec.name, setting, level) from None
     m = session.mission
@@ -194,6 +203,8 @@ def _validate_job(job: Job, isolate: Isolation | None = None) -> None:
     """Build the job's components once, on one scenario (as `ata check` does), and check that
     its scenarios are held out (asking a sandboxed process, with `isolate`)."""
     m = job.mission
+    if m.source.startswith("published:"):
+        return                         # published rows: checked as read, nothing is built
     try:
         if isolate is None:
             check_held_out(m, build_once(m, job.session.registry))
@@ -231,8 +242,22 @@ def plan_key(jobs: list[Job], chunk_size: int) -> str:
     component versions, the chunking); not where or how fast it runs."""
     return runlog.plan_key({"ata": __version__, "chunk_size": chunk_size,
                             "jobs": [[j.method, j.setting, j.level, j.mission.to_toml(),
-                                      j.session.versions(), j.session.inputs()]
+                                      j.session.versions(), j.session.inputs(),
+                                      j.session.code(), _published(j)]
                                      for j in jobs]})
+
+
+def _published(job: Job) -> str:
+    """The published rows a job reads ('' for a job that runs)."""
+    return job.mission.source if job.mission.source.startswith("published:") else ""
+
+
+def plan_code(jobs: list[Job]) -> dict[str, str]:
+    """'kind name' -> the digest of its code, for every component of every job."""
+    out: dict[str, str] = {}
+    for job in jobs:
+        out.update(job.session.code())
+    return dict(sorted(out.items()))
 
 
 def eval_plan(suites: list[Suite], jobs: list[Job], chunk_size: int = DEFAULT_CHUNK,
@@ -240,7 +265,8 @@ def eval_plan(suites: list[Suite], jobs: list[Job], chunk_size: int = DEFAULT_CH
     """`ata eval`'s plan: each job's scenarios in chunks of `chunk_size`, a work unit each."""
     return Plan(missions=[j.mission for j in jobs], registries=[j.session.registry for j in jobs],
                 chunks=[fixed_chunks(scenario_ids(j.mission), chunk_size) for j in jobs],
-                key=plan_key(jobs, chunk_size), describe=describe or {},
+                key=plan_key(jobs, chunk_size),
+                describe={**(describe or {}), "code": plan_code(jobs)},
                 unit_name="work units", title=f"eval: {len(jobs)} (method, setting, level)",
                 default_out=lambda: default_out_dir(suites), command="eval")
 
@@ -326,15 +352,18 @@ def write_eval(out_dir: str | Path, suites: list[Suite], jobs: list[Job], result
     components: dict[str, str] = {}
     per_method: dict[str, dict[str, str]] = {}
     inputs: dict[str, dict[str, str]] = {}
+    code: dict[str, dict[str, str]] = {}
     for job in jobs:
         versions = job.session.versions()
         components.update(versions)
         per_method.setdefault(job.method, {}).update(versions)
         inputs.setdefault(job.method, {}).update(job.session.inputs())
+        code.setdefault(job.method, {}).update(job.session.code())
     (out / "plugins.toml").write_text(tomli_w.dumps({"ata": __version__,
                                                      "components": components,
                                                      "methods": per_method,
-                                                     "inputs": inputs}), encoding="utf-8")
+                                                     "inputs": inputs, "code": code}),
+                                      encoding="utf-8")
     meta = {"ata": __version__, "arguments": arguments,
             "suites": [{"path": s.path, "name": s.name, "content": s.raw} for s in suites],
             "jobs": [{"method": j.method, "setting": j.setting, "uncertainty": j.level,

@@ -133,6 +133,8 @@ def run_plan(plan: Plan, write: Callable[[Done], T], out: str | Path | None = No
                          pool.describe().get("workers", 1) if pool.parallel else 1)
         out_dir = open_out_dir(out, plan.command) if out is not None else plan.default_out()
         stack.enter_context(runlog.FolderLock(out_dir))
+        if not force:
+            changed_code(out_dir, plan)
         try:
             key = plan.key if isolate is None else runlog.plan_key({"plan": plan.key,
                                                                      **isolate.key()})
@@ -186,3 +188,23 @@ def dropped_message(log: runlog.RunLog) -> str | None:
         return None
     return (f"{len(log.dropped)} line(s) of {log.path} did not fit the plan and were dropped, "
             f"their work units to run again: {'; '.join(log.dropped)}")
+
+
+def changed_code(out_dir: Path, plan: Plan) -> None:
+    """Refuse to resume a folder whose results were made with other code of a component (its
+    plan.json's ``code``), naming each component that changed and --force."""
+    import json
+    try:
+        before = json.loads((out_dir / runlog.PLAN).read_text(encoding="utf-8")).get("code")
+    except (OSError, ValueError, AttributeError):
+        return
+    now = plan.describe.get("code")
+    if not isinstance(before, dict) or not isinstance(now, dict):
+        return
+    changed = [name for name, digest in now.items() if name in before and before[name] != digest]
+    if changed:
+        raise MissionError("--out", None, f"{out_dir} holds results made with other code of "
+                           f"{', '.join(changed)} (its code changed since: "
+                           + "; ".join(f"{n} {before[n]} there, {now[n]} here" for n in changed)
+                           + "); run with --force to start afresh there, or choose another "
+                           "folder")

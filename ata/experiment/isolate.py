@@ -105,6 +105,8 @@ def method_code(mission: Mission, registry: Register
                 # a method the host never imported: the process loads every plugin, and sees
                 # every third-party package's code (found without running it)
                 more_binds, more_paths = code_locations()
+                more_binds += list(info.factory.remote.binds)      # a file named by reference
+                more_paths += list(info.factory.remote.paths)
                 binds += [b for b in more_binds if not _under(b, shown)]
                 shown += more_binds
                 paths += more_paths
@@ -150,8 +152,10 @@ def resolver(isolation: Isolation):
     """The `resolve` of `ata.experiment.remote.isolated_registry`: a sandboxed process, started
     for it and ended after, that loads every plugin, validates the mission and answers the
     resolved settings of the components the host did not load."""
-    def resolve(raw: dict[str, Any], source: str, wanted: list[tuple[str, str]]) -> Any:
+    def resolve(raw: dict[str, Any], source: str, wanted: list[tuple[str, str]],
+                files: list[str] = (), folders: list[str] = ()) -> Any:
         binds, paths = code_locations()
+        binds, paths = binds + list(files), paths + list(folders)
         process = DecisionProcess(_spare_key(isolation) + ("resolve",), None, ([], [], True),
                                   binds, isolation)
         try:

@@ -23,14 +23,18 @@ code.
 
 from __future__ import annotations
 
+import hashlib
 import importlib.util
 import json
 import math
 import os
+import re
 from dataclasses import dataclass
+from pathlib import Path
 from importlib import metadata
 from typing import Any
 
+from ata.core import references as refs_mod
 from ata.core.errors import ContractError, MissionError
 from ata.core.kernel import DECISION_SLOTS
 from ata.core.mission import SLOT_KINDS, TRAINER_SLOT
@@ -44,11 +48,19 @@ class RemoteSettings:
     there (None: the component takes no settings), with what the host's registry needs to
     stand the component in again in a worker process."""
 
-    kind: str
+    kind: str            # its kinds, comma-separated (a class that fills two slots)
     name: str
     plugin: str
     dist: str
     values_json: str | None
+    code: str = ""                          # the digest of its code, for the plan keys
+    reference: tuple[tuple[str, str], ...] = ()   # the [references] entry of one named so
+    binds: tuple[str, ...] = ()             # its own files the decision process is shown
+    paths: tuple[str, ...] = ()             # and the folders put on its sys.path
+
+    @property
+    def kinds(self) -> list[str]:
+        return self.kind.split(",")
 
     @property
     def values(self) -> dict[str, Any] | None:
@@ -77,6 +89,7 @@ class RemoteComponent:
         self.Settings = _RemoteSettingsClass(settings)
         self.__name__ = self.__qualname__ = f"RemoteComponent[{settings.name}]"
         self.__module__ = settings.plugin
+        self.code = settings.code
 
     def __call__(self, *args: Any, **kwargs: Any) -> Any:
         raise ContractError(f"{self.remote.kind} {self.remote.name!r} runs in the sandboxed "
@@ -132,7 +145,7 @@ def _names(raw: dict[str, Any]) -> list[tuple[str, str, str]]:
     for slot, kind in [*SLOT_KINDS.items(), TRAINER_SLOT]:
         value = table.get(slot)
         for name in value if isinstance(value, list) else [value]:
-            if isinstance(name, str):
+            if isinstance(name, str) and (slot, name) != (TRAINER_SLOT[0], "none"):
                 out.append((slot, kind, name))
     return out
 
@@ -179,20 +192,26 @@ def _world_providers(needed: list[tuple[str, str, str]], probe: Any) -> tuple[st
 
 
 def isolated_registry(raw: dict[str, Any], optional: list[str], source: str,
-                      resolve: Any, probe: Any) -> Register:
-    """The host's registry for a mission run under --isolate (see the module's text).
+                      resolve: Any, probe: Any) -> tuple[Register, dict[str, Any]]:
+    """The host's registry for a mission run under --isolate (see the module's text), and the
+    raw mission with each decision component named by reference renamed to its name.
 
-    :param resolve: called with (raw mission without its seed, source, [(kind, name)]) for the
-        remote components; returns the sandboxed process's answer (`ata.runtime.decider`).
+    :param resolve: called with (raw mission without its seed, source, [(kind, name)], the files
+        and sys.path folders of those named by reference) for the remote components; returns
+        the sandboxed process's answer (`ata.runtime.decider`).
     :param probe: called with an ``ata``-group entry point's name; returns what a sandboxed
         process that imported it alone says it registers.
     """
+    raw, refs = _references(raw, source)
     registry = _own_registry(optional)
     declared = declared_components()
     remote: list[tuple[str, str]] = []
     world: set[str] = set()
     undeclared = []
     for slot, kind, name in _names(raw):
+        if name in refs:
+            remote.append((kind, name))
+            continue
         if (kind, name) in registry.components:
             continue
         module = declared.get((kind, name))
@@ -208,20 +227,25 @@ def isolated_registry(raw: dict[str, Any], optional: list[str], source: str,
         eps = _world_providers(undeclared, probe)
         world |= {_top(_module_of(e)) for e in eps}
         registry = _own_registry(optional, eps)
+    remote = list(dict.fromkeys(remote))
     if not remote:
-        return registry
+        return registry, raw
     public = json.loads(json.dumps(raw, default=str))
     public.setdefault("mission", {})["seed"] = 0           # the root seed never leaves the host
-    answer = resolve(public, source, remote)
-    _stand_in(registry, answer, remote)
+    answer = resolve(public, source, remote, [b for r in refs.values() for b in r.binds],
+                     [q for r in refs.values() for q in r.paths])
+    names = _stand_in(registry, answer, remote, refs)
+    raw = _renamed(raw, names)
     for kind, name in remote:
+        if name in refs:
+            continue
         package = _top(_module_of(registry.components[(kind, name)].plugin))
         if package in world:
             raise MissionError("[components]", None, f"--isolate cannot keep {kind} {name!r} "
                                f"apart from the world: its package {package!r} also provides "
                                "a world component of the mission, which runs in the world's "
                                "process")
-    return registry
+    return registry, raw
 
 
 def _top(module: str) -> str:
@@ -236,13 +260,16 @@ def _module_of(plugin: str) -> str:
     return plugin
 
 
-def _stand_in(registry: Register, answer: Any, remote: list[tuple[str, str]]) -> None:
+def _stand_in(registry: Register, answer: Any, remote: list[tuple[str, str]],
+              refs: dict[str, "_Ref"]) -> dict[str, str]:
     """Check the decision process's answer and put a `RemoteComponent` in the registry for each
-    remote component."""
+    remote component; the name of each one named by reference (reference -> name)."""
     items = answer.get("components") if isinstance(answer, dict) else None
     if not isinstance(items, list) or len(items) != len(remote):
         raise ContractError("the decision process answered the settings of other components "
                             "than it was asked for")
+    names: dict[str, str] = {}
+    made: dict[str, RemoteSettings] = {}
     for (kind, name), item in zip(remote, items):
         if not isinstance(item, dict) or (item.get("kind"), item.get("name")) != (kind, name):
             raise ContractError(f"the decision process did not resolve {kind} {name!r}")
@@ -250,11 +277,138 @@ def _stand_in(registry: Register, answer: Any, remote: list[tuple[str, str]]) ->
         if values is not None and not (isinstance(values, dict) and _plain(values)):
             raise ContractError(f"the decision process gave settings of {name!r} that are not "
                                 "plain values")
-        plugin, dist = str(item.get("plugin", "?"))[:200], _dist_of(str(item.get("plugin")))
-        settings = RemoteSettings(kind, name, plugin, dist,
-                                  None if values is None else json.dumps(values, sort_keys=True))
-        registry.components[(kind, name)] = ComponentInfo(kind, name, RemoteComponent(settings),
-                                                          plugin, dist)
+        values_json = None if values is None else json.dumps(values, sort_keys=True)
+        ref = refs.get(name)
+        if ref is None:
+            plugin = str(item.get("plugin", "?"))[:200]
+            settings = RemoteSettings(kind, name, plugin, _dist_of(plugin), values_json,
+                                      code=_package_digest(_module_of(plugin)))
+        else:
+            resolved = item.get("resolved")
+            if not (isinstance(resolved, str) and NAME.fullmatch(resolved)):
+                raise ContractError(f"the decision process named {name!r} {resolved!r}")
+            if item.get("sha256") != ref.sha256:
+                raise MissionError("[components]", None, f"{ref.path} changed while it was "
+                                   "being loaded: run it again")
+            names[name] = resolved
+            before = made.get(resolved)
+            kinds = ",".join(sorted({kind, *(before.kinds if before else [])}))
+            settings = RemoteSettings(
+                kinds, resolved, f"reference {ref.source}",
+                f"{ref.path} sha256:{ref.sha256[:16]}", values_json, code=ref.sha256,
+                reference=(("source", ref.source), ("kind", kinds), ("sha256", ref.sha256)),
+                binds=ref.binds, paths=ref.paths)
+            made[resolved] = settings
+        for k in settings.kinds:
+            registry.components[(k, settings.name)] = ComponentInfo(
+                k, settings.name, RemoteComponent(settings), settings.plugin, settings.dist)
+    return names
+
+
+NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.\-]{0,79}")
+"""What a component's name may be (a class's name, or its ``name`` attribute)."""
+
+
+@dataclass(frozen=True)
+class _Ref:
+    """A decision component named by reference, found without running it."""
+
+    source: str                  # absolute: "/abs/my_policy.py:Class" or "pkg.mod:Class"
+    path: str                    # its file, or its package's folder
+    sha256: str                  # of the file (or of the package's files)
+    binds: tuple[str, ...]
+    paths: tuple[str, ...]
+
+
+def _references(raw: dict[str, Any], source: str) -> tuple[dict[str, Any], dict[str, _Ref]]:
+    """The raw mission with every reference in a decision slot made absolute (a name that a
+    ``[references]`` table gives, replaced by its source, its recorded sha256 checked), and
+    those references: found without running them, for the sandbox to load."""
+    base = Path(source).resolve().parent if source and not source.startswith("<") else None
+    given = raw.get(refs_mod.TABLE) or {}
+    given = given if isinstance(given, dict) else {}
+    table = raw.get("components") if isinstance(raw.get("components"), dict) else {}
+    slots, used, refs = dict(table), set(), {}
+    for slot in DECISION_SLOTS:
+        value = slots.get(slot)
+        out = []
+        for v in value if isinstance(value, list) else [value]:
+            text, recorded = v, None
+            if isinstance(v, str) and isinstance(given.get(v), dict):
+                text, recorded = given[v].get("source"), given[v].get("sha256")
+                used.add(v)
+            if isinstance(text, str) and refs_mod.is_reference(text):
+                ref = _locate(refs_mod.absolute(text, base), f"[components] key {slot!r}")
+                if recorded and recorded != ref.sha256:
+                    raise MissionError(f"[{refs_mod.TABLE}]", v, f"{ref.path} has changed "
+                                       f"since this mission was resolved (sha256 "
+                                       f"{recorded[:16]} then, {ref.sha256[:16]} now)")
+                refs[ref.source] = ref
+                text = ref.source
+            out.append(text)
+        if value is not None:
+            slots[slot] = out if isinstance(value, list) else out[0]
+    raw = {**raw, "components": slots}
+    rest = {k: v for k, v in given.items() if k not in used}
+    raw.pop(refs_mod.TABLE, None)
+    if rest:
+        raw[refs_mod.TABLE] = rest
+    return raw, refs
+
+
+def _locate(source: str, where: str) -> _Ref:
+    target = source.rpartition(":")[0]
+    if target.endswith(".py") or "/" in target:
+        path = Path(target)
+        if not path.is_file():
+            raise MissionError(where, None, f"{source!r}: no such file {path}")
+        real = os.path.realpath(path)
+        return _Ref(source, str(path), hashlib.sha256(path.read_bytes()).hexdigest(), (real,),
+                    ())
+    folders = _folders(target.split(".")[0])
+    if not folders:
+        raise MissionError(where, None, f"{source!r}: no module {target.split('.')[0]!r} "
+                           "can be found")
+    return _Ref(source, folders[0], _digest_files(folders), tuple(folders),
+                tuple(dict.fromkeys(os.path.dirname(f) for f in folders)))
+
+
+def _folders(top: str) -> list[str]:
+    """A top-level module's folder (or file), by `find_spec`, which runs none of it."""
+    try:
+        spec = importlib.util.find_spec(top)
+    except (ImportError, ValueError):
+        return []
+    if spec is None:
+        return []
+    where = list(spec.submodule_search_locations or []) or ([spec.origin] if spec.origin else [])
+    return [os.path.realpath(w) for w in where if os.path.exists(w)]
+
+
+def _digest_files(folders: list[str]) -> str:
+    h = hashlib.sha256()
+    for folder in folders:
+        files = [Path(folder)] if os.path.isfile(folder) else sorted(Path(folder).rglob("*.py"))
+        for f in files:
+            h.update(str(f.relative_to(folder) if f != Path(folder) else f.name).encode())
+            h.update(hashlib.sha256(f.read_bytes()).digest())
+    return h.hexdigest()
+
+
+def _package_digest(module: str) -> str:
+    folders = _folders(_top(module))
+    return "sha256:" + _digest_files(folders)[:16] if folders else "unknown"
+
+
+def _renamed(raw: dict[str, Any], names: dict[str, str]) -> dict[str, Any]:
+    slots = dict(raw.get("components") or {})
+    for slot in DECISION_SLOTS:
+        value = slots.get(slot)
+        if isinstance(value, list):
+            slots[slot] = [names.get(v, v) for v in value]
+        elif isinstance(value, str):
+            slots[slot] = names.get(value, value)
+    return {**raw, "components": slots}
 
 
 def _plain(value: Any, depth: int = 0) -> bool:
@@ -297,7 +451,7 @@ def worker_registry(mission: Any, probe: Any) -> Register:
         registry = _own_registry(optional, _world_providers(undeclared, probe))
     for s in mission.component_settings.values():
         if isinstance(s, RemoteSettings):
-            registry.components[(s.kind, s.name)] = ComponentInfo(s.kind, s.name,
-                                                                  RemoteComponent(s),
-                                                                  s.plugin, s.dist)
+            for k in s.kinds:
+                registry.components[(k, s.name)] = ComponentInfo(k, s.name, RemoteComponent(s),
+                                                                 s.plugin, s.dist)
     return registry

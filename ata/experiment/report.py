@@ -172,6 +172,9 @@ def table_rows(report: Report, setting: str, level: str,
                      fmt(cell.reallocations, ".2f"),
                      "-" if math.isnan(d) else f"{d:+.1f} [{lo:+.1f}, {hi:+.1f}]",
                      fmt(cell.beats, ".3f")])
+    if all(math.isnan(c.diff[0]) for c in report.table(setting, level)):
+        # no method is paired with the reference (it is alone): no empty paired columns
+        header, rows = header[:-2], [r[:-2] for r in rows]
     return header, rows
 
 

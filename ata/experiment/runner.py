@@ -54,6 +54,19 @@ class Session:
         return {f"{kind} {name}": self.registry.get(kind, name, "").dist
                 for kind, name in self.mission.chosen()}
 
+    def code(self) -> dict[str, str]:
+        """'kind name' -> the digest of the code of every chosen component (its plugin's
+        source files; for a component named by reference, its file): the plan keys hold them,
+        so results made with other code are never resumed as current."""
+        from ata.core.references import code_digest
+        out = {}
+        for kind, name in self.mission.chosen():
+            info = self.registry.get(kind, name, "")
+            # a method run apart (--isolate) brings the digest of its code, never imported
+            out[f"{kind} {name}"] = getattr(info.factory, "code", None) or \
+                code_digest(info.factory, info.plugin)
+        return out
+
     def inputs(self) -> dict[str, str]:
         """'component.setting' -> content digest of every file a component setting names (a
         checkpoint, ``builtin:NAME`` or a path): the plan keys hold them, so results made with
@@ -73,10 +86,14 @@ class Session:
 
 def mission_file(spec: str | Path | None) -> str:
     """The file of a mission argument: ``builtin:NAME`` is ata/missions/NAME.toml (as in
-    suites), nothing the built-in default mission, anything else a path."""
+    suites), nothing the built-in default mission, an `ata train` run folder its resolved
+    mission (which names its best.pt), anything else a path."""
     if not spec:
         return str(BUILTIN_MISSION)
     spec = str(spec)
+    if Path(spec).is_dir():            # an `ata train` run folder: its trained weights
+        from ata.training.seeds import trained_mission
+        return trained_mission(spec)
     if spec.startswith("builtin:"):
         name = spec.split(":", 1)[1]
         path = BUILTIN_MISSION.parent / f"{name}.toml"
@@ -106,7 +123,8 @@ def load_session(path: str | None = None, overrides: list[str] | None = None,
     if isolate is not None and not extra:
         from ata.experiment.isolate import prober, resolver
         from ata.experiment.remote import isolated_registry
-        registry = isolated_registry(raw, optional, source, resolver(isolate), prober(isolate))
+        registry, raw = isolated_registry(raw, optional, source, resolver(isolate),
+                                          prober(isolate))
         pm = registry.pm
     else:
         pm = get_plugin_manager(optional=optional, extra=extra)
@@ -225,6 +243,7 @@ def plan_key(session: Session, chunks: list[np.ndarray]) -> str:
     """What decides a run's rows: the resolved mission, the components' versions, the chunks."""
     return runlog.plan_key({"ata": __version__, "mission": session.mission.to_toml(),
                             "versions": session.versions(), "inputs": session.inputs(),
+                            "code": session.code(),
                             "chunks": [[int(c[0]), int(c.size)] for c in chunks]})
 
 
@@ -247,7 +266,8 @@ def mission_plan(session: Session, workers: int | None = None,
                      f"than {memory.limit_text(limit)}")
     return Plan(missions=[m], registries=[session.registry], chunks=[chunks],
                 key=plan_key(session, chunks), unit_name="batches",
-                describe={"mission": m.settings.name, "scenarios": m.settings.scenarios},
+                describe={"mission": m.settings.name, "scenarios": m.settings.scenarios,
+                          "code": session.code()},
                 title=f"{m.settings.name}: {m.settings.scenarios} scenarios",
                 default_out=lambda: default_out_dir(m), notes=notes)
 
@@ -348,7 +368,7 @@ def write_run(out_dir: str | Path, session: Session, result: RunResult) -> Path:
     (out / "summary.json").write_text(json.dumps(summarize(result), indent=2) + "\n")
     (out / "mission.resolved.toml").write_text(session.mission.to_toml(), encoding="utf-8")
     versions = {"ata": __version__, "components": session.versions(),
-                "inputs": session.inputs()}
+                "inputs": session.inputs(), "code": session.code()}
     (out / "plugins.toml").write_text(tomli_w.dumps(versions), encoding="utf-8")
     return out
 

@@ -20,6 +20,7 @@ import numpy as np
 
 from ata.core.kernel import Simulation
 from ata.core.mission import Mission
+from ata.core.references import restore
 from ata.core.registry import Register, collect_components, get_plugin_manager
 from ata.experiment import runlog
 from ata.experiment.isolate import Isolation, prober
@@ -139,6 +140,12 @@ def run_unit(unit: Unit, on_epoch: Callable[[int], None] | None = None) -> dict[
     """Run one unit (in a fresh plugin manager unless it carries its registry); the result
     carries the unit's wall time."""
     t0 = time.perf_counter()
+    if unit.mission.source.startswith("published:"):   # a suite's published method: read
+        from ata.experiment.published import unit_part
+        part = unit_part(unit.mission, unit.ids)
+        for epoch in range(unit.mission.clock.n_epochs if on_epoch is not None else 0):
+            on_epoch(epoch)                            # the progress bar counts it done
+        return {**part, "wall_s": 0.0}
     mission = one_worker(unit.mission) if unit.parallel else unit.mission
     registry = unit.registry
     if registry is None and unit.isolate is not None:
@@ -146,6 +153,7 @@ def run_unit(unit: Unit, on_epoch: Callable[[int], None] | None = None) -> dict[
         registry = worker_registry(mission, prober(unit.isolate))
     elif registry is None:
         registry = collect_components(get_plugin_manager(optional=mission.settings.plugins))
+        restore(mission.references, registry)    # the components it names by reference
     with torch_one_thread(), run_cache(unit.cache):
         out = run_batch(mission, registry, unit.ids, on_epoch=on_epoch, isolate=unit.isolate)
     out["wall_s"] = time.perf_counter() - t0

@@ -1,1 +1,1 @@
-"""Built-in plugins: the MODEL.md team model, uncertainty injectors and allocation policies."""
+"""Built-in plugins: the team model (docs/model.md), uncertainty injectors, allocation policies."""

@@ -1,7 +1,7 @@
 """The filter reconstructor: a classical estimate of S, with no learning (a grid posterior over
 each human's hidden fatigue curve; the last fresh robot and task rows and their age).
 
-Humans (MODEL.md sections 5 and 6, revision 3). Each human's fatigue curve has a hidden onset
+Humans (docs/model.mdrevision 3). Each human's fatigue curve has a hidden onset
 and slope, drawn uniformly over the public prior's ranges (`onset_range`, `slope_range` of the
 published ``HumanConstants.fatigue_spread``). The filter keeps, per scenario and human, a
 posterior over a grid of K = onsets x slopes curves at the midpoints of equal cells of those
@@ -46,7 +46,7 @@ from ata.model.fatigue import BELIEF_KEYS, individual, onset_range, slope_range
 from ata.model.team import HumanConstants
 
 STALE_GROUPS = ("robots", "tasks")
-"""The groups whose rows the latency may hold back (MODEL.md section 6)."""
+"""The groups whose rows the latency may hold back (docs/model.md: "Uncertainty")."""
 
 
 def noise_variance(mission) -> float:

@@ -1,16 +1,16 @@
 """The human model: P_hc, classification time, fatigue, workload, situational awareness, and one
-first-come-first-served busy timeline per human (MODEL.md section 5).
+first-come-first-served busy timeline per human (docs/model.md: "Humans").
 
 Each human tires on an individual curve (`ata.model.fatigue.individual`): an onset and a slope
 drawn at set-up within the ranges ``fatigue_spread`` sets, hidden from every decision-maker
 (neither inherent information nor observed state). With ``fatigue_spread = 0`` every human has
-the testbed's population line, and the model is MODEL.md revision 2's bit for bit.
+the testbed's population line, and the model is model revision 2's bit for bit.
 
 It owns group ``humans`` (`HumanState`).
 
 A reallocation that changes a human's work (an item gained or lost, as navigator or classifier,
 that had not started) re-briefs that human: busy for ``rebrief_s`` before the next item, and SA
-drops as on a switch of robot (MODEL.md section 3a); ``rebriefs`` counts them.
+drops as on a switch of robot (docs/model.md: "Re-tasking cost"); ``rebriefs`` counts them.
 
 At set-up it publishes its constants for the policies, a `HumanConstants` (``sim.publish``).
 
@@ -81,7 +81,7 @@ class HumanState:
 
 
 class HumanModel:
-    """Humans on site, with the performance model of MODEL.md section 5."""
+    """Humans on site, with the performance model of docs/model.md, "Humans"."""
 
     @dataclass
     class Settings:
@@ -277,7 +277,7 @@ class HumanModel:
     @hookimpl
     def ata_allocation_changed(self, sim: SimState, changed: np.ndarray,
                                previous: Allocation | None) -> None:
-        """Re-brief every human whose work the reallocation changes (MODEL.md section 3a).
+        """Re-brief every human whose work the reallocation changes (docs/model.md).
 
         Only tasks not yet captured may change, so every navigation leg or classification that
         moves between humans had not started. A human re-briefed is busy for ``rebrief_s`` from

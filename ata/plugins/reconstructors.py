@@ -1,6 +1,6 @@
 """The identity reconstructor: passes the observed state on unchanged (the w/o.AUX ablation); the
 arrivals reconstructor: captures that the latency hides, read from the robot rows; the oracle:
-the true state, a reference (MODEL.md section 6's value of information), never a method."""
+the true state, a reference (docs/model.md's value of information), never a method."""
 
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ class ArrivalReconstructor:
     """Captures the latency hides, read from the robot rows: a POI whose observed row is as it
     was an epoch before (so it may be stale) and shows it unvisited, although the robot that
     headed for it, still allocated to it and seen fresh and working now, heads for another POI
-    or for none. A robot leaves its target only once it has captured it (MODEL.md section 4),
+    or for none. A robot leaves its target only once it has captured it (docs/model.md: "Robots"),
     unless a reallocation took the POI away, which the allocation in force shows. The guess goes
     under ``captured_guess`` (B, P, 1); `plan_start` takes such POIs as captured, for every
     policy that plans from it (greedy and ATA-HRL alike). Uses the observed S, its previous
@@ -76,7 +76,7 @@ class OracleReconstructor:
     the true rows of those groups hold (a leg under way, a capture), which the planners then
     leave alone (`ata.model.plan.as_seen`). The rows of S a channel leaves out stay as
     observed. What it yields minus what the same policy yields with ``identity`` is the value
-    of that information (MODEL.md section 6)."""
+    of that information (docs/model.md: "Uncertainty")."""
 
     reference = True
     """The kernel hands it the true state, and labels its results a reference."""

@@ -1,5 +1,5 @@
 """The robot model: UAV and UGV motion, image quality (Table I), capture, onboard classification
-(P_rc), and the hand-over of navigation legs and classifications to humans (MODEL.md section 4).
+(P_rc), and the hand-over of navigation legs and classifications to humans (docs/model.md).
 
 It owns group ``robots`` (`RobotState`). Work leaves it through queues: a capture to
 ``tasks.captured`` (``b, p, time, quality, robot, classifier``), a leg that needs its human
@@ -11,7 +11,7 @@ A robot is idle, waiting for its navigator, or on a leg (travel then the capture
 times are exact; the kernel tick only decides when the next event is looked at.
 
 A robot out on its route (on a leg, or waiting for its navigator to start one) whose next target
-a reallocation changes holds for ``replan_s`` before it moves on (MODEL.md section 3a): after the
+a reallocation changes holds for ``replan_s`` before it moves on (docs/model.md): after the
 capture in hand (``replan_hold``), or at once when the leg it waited for is withdrawn.
 ``replans`` counts them.
 
@@ -38,7 +38,7 @@ from ata.model.team import RobotConstants
 # (sim, free) -> (B, R) int: each free robot's next POI, -1 for none.
 
 def nearest(sim: SimState, free: np.ndarray) -> np.ndarray:
-    """MODEL.md section 3: a free robot goes to its closest assigned, not yet visited POI that no
+    """docs/model.md: a free robot goes to its closest assigned, not yet visited POI that no
     other robot is heading for, from where it is."""
     r, t = sim.group("robots"), sim.group("tasks")
     out = np.full(free.shape, -1, dtype=np.int64)
@@ -95,7 +95,7 @@ class RobotState:
     moved_s: np.ndarray           # seconds of finished legs
     moved_at_epoch: np.ndarray
     idleness: np.ndarray
-    replan_hold: np.ndarray       # hold after the capture in hand (MODEL.md section 3a)
+    replan_hold: np.ndarray       # hold after the capture in hand (docs/model.md)
     replans: np.ndarray
     visited: np.ndarray           # (B, P) bool: POIs captured
 

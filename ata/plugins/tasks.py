@@ -2,7 +2,7 @@
 
 It owns group ``tasks`` (`TaskState`) and scores every classification: its success is decided
 here, by the POI's pre-drawn uniform against the success probability of whoever classified it.
-Work reaches it through queues (MODEL.md sections 3-6):
+Work reaches it through queues (docs/model.md: "The allocation", "Robots", "Humans", "Uncertainty"):
 
 * ``tasks.captured`` (from the robot model): ``b, p, time, quality, robot, classifier``. An
   onboard classification is scored at once (P_rc); one for a human goes on to
@@ -47,7 +47,7 @@ class TaskState:
 
 
 class PoiTaskModel:
-    """POIs uniform over the area, kinds and difficulties as in MODEL.md section 1."""
+    """POIs uniform over the area, kinds and difficulties as in docs/model.md, "World and team"."""
 
     @dataclass
     class Settings:
@@ -164,7 +164,7 @@ class PoiTaskModel:
 
 
 def upper_bound(sim: SimState) -> np.ndarray:
-    """U = sum_p max(0, points_p (2 P*_p - 1)), MODEL.md section 8.
+    """U = sum_p max(0, points_p (2 P*_p - 1)), docs/model.md, "Methods compared".
 
     P*_p is the best success probability any member could reach on p's true attributes with
     F_f = F_w = 1: the best image quality any robot reaches there (auto, or under the team's most

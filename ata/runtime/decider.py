@@ -207,7 +207,15 @@ def resolve(req: dict[str, Any]) -> dict[str, Any]:
     registry = collect_components(plugins_)
     mission = validate(raw, registry, source=req.get("source", "<isolated>"))
     out = []
+    by_source = {r.source: r for r in mission.references.values()}
     for kind, name in wanted:
+        ref = by_source.get(name)           # a reference: the component's name is its own
+        if ref is not None:
+            info = registry.get(kind, ref.name, "[components]")
+            st = mission.component_settings.get(ref.name)
+            out.append({"kind": kind, "name": name, "resolved": ref.name, "sha256": ref.sha256,
+                        "values": None if st is None else settings_dict(st)})
+            continue
         info = registry.get(kind, name, "[components]")
         if is_reference(info.factory):
             raise MissionError("--isolate", None, f"{kind} {name!r} is a reference that reads "

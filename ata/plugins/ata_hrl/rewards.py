@@ -1,4 +1,4 @@
-"""The paper's hierarchical rewards (MODEL.md section 7), computed from an episode's record.
+"""The paper's hierarchical rewards (docs/model.md: "Rewards"), computed from an episode's record.
 
     R_ITA = sum_t r_t - 0.2 * sum_{t >= 1, reallocated} ||a(t) - a_ITA||_F
     R_C   = sum_t r_t + sum Delta r - 0.4 * F_realloc / T

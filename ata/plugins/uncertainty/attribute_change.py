@@ -14,7 +14,7 @@ from ata.core.state import SimState
 
 
 class AttributeChange:
-    """MODEL.md section 6. A changed POI's difficulty is redrawn to one of the two other levels,
+    """docs/model.md. A changed POI's difficulty is redrawn to one of the two other levels,
     and its kind is flipped with probability ``kind_flip`` (so every changed POI differs)."""
 
     @dataclass

@@ -12,7 +12,7 @@ from ata.core.state import Observation, SimState
 
 
 class FatigueNoise:
-    """MODEL.md section 6; sigma^2 from the mission's uncertainty level unless set here."""
+    """docs/model.md; sigma^2 from the mission's uncertainty level unless set here."""
 
     @dataclass
     class Settings:

@@ -14,7 +14,7 @@ from ata.core.state import EntityTable, Observation, SimState
 
 
 class Latency:
-    """MODEL.md section 6. Stale rows chain: a row kept twice is two epochs old."""
+    """docs/model.md, "Uncertainty". Stale rows chain: a row kept twice is two epochs old."""
 
     @dataclass
     class Settings:

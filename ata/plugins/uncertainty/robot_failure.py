@@ -13,7 +13,7 @@ from ata.core.state import SimState
 
 
 class RobotFailure:
-    """MODEL.md section 6: the failure shows in S from the next epoch; the robot's POIs stay
+    """docs/model.md: the failure shows in S from the next epoch; the robot's POIs stay
     assigned to it, and score nothing, until reallocated."""
 
     @dataclass

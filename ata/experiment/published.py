@@ -1,0 +1,444 @@
+"""Published rows: the per-scenario rows of an evaluation, shipped as package data with what they
+were made with, so that a new method is paired against them without running them again.
+
+A set of published rows is a folder (under ``ata/published/NAME``, or anywhere) of two files:
+
+* ``rows.csv.gz``: the evaluation's results.csv, gzipped, without its ``wall_s`` column (the
+  time a row took depends on the machine, not on the method);
+* ``manifest.json``: the ata version, the seed, and per method its component versions, the
+  digest of each component's code (``code``), the digests of the weights it read (``inputs``),
+  and per (setting, level) cell its resolved mission, its scenario ids (first, count) and the
+  *model revision* of the cell: the digest of the world the scenarios ran in (the world
+  components' code, their settings and the [mission] keys that shape the scenarios).
+
+`publish` writes one from an `ata eval` folder (`ata publish EVAL_DIR --out DIR`). `check_pairing`
+refuses to pair a folder of results against a set when a cell's scenarios are not among the
+set's, its model revision differs, or the code of a published method differs from the code
+installed now. `rerun_sample` reruns a sample of a set's rows and names every row that is not
+identical.
+
+The reference code and weights are checked against the installed ones from each published
+method's resolved mission: a set is valid for the version whose code made it.
+"""
+
+from __future__ import annotations
+
+import csv
+import gzip
+import hashlib
+import io
+import json
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from ata import __version__
+from ata.core.errors import MissionError
+from ata.core.mission import loads_toml
+from ata.experiment.results import Results, read_results
+
+PUBLISHED = Path(__file__).resolve().parent.parent / "published"
+"""The sets that ship with ata, one folder each."""
+DEFAULT = "paper"
+"""The set ``published`` names alone."""
+ROWS, MANIFEST = "rows.csv.gz", "manifest.json"
+FORMAT = 1
+WORLD_KINDS = ("task_model", "human_model", "robot_model", "perturbation", "injector")
+"""The components whose code and settings make the world a method is scored in."""
+WORLD_MISSION_KEYS = ("setting", "humans", "robots", "tasks", "horizon_s", "epoch_s",
+                      "tick_s", "uncertainty", "fatigue_variance", "event_probability")
+DROPPED = ("wall_s",)
+"""results.csv columns left out of published rows."""
+DEFINED_COLUMNS = ("score", "upper_bound", "reallocations")
+"""The columns `rerun_sample` always compares (every other numeric column of the rows too)."""
+
+
+def is_published(spec: str | Path) -> bool:
+    """Whether a compare argument names published rows (``published``, ``published:NAME`` or
+    ``published:PATH``) rather than a result folder."""
+    return str(spec) == "published" or str(spec).startswith("published:")
+
+
+def locate(spec: str | Path) -> Path:
+    """The folder of a set: ``published`` the default set, ``published:NAME`` a shipped one,
+    ``published:PATH`` (or a PATH) a folder with a manifest.json."""
+    text = str(spec)
+    name = text.split(":", 1)[1] if ":" in text else DEFAULT if text == "published" else text
+    shipped = sorted(p.parent.name for p in PUBLISHED.glob(f"*/{MANIFEST}"))
+    for folder in (PUBLISHED / name, Path(name).expanduser()):
+        if (folder / MANIFEST).is_file() and (folder / ROWS).is_file():
+            return folder
+    raise MissionError("", None, f"no published rows {name!r}: shipped sets: "
+                       f"{', '.join(shipped) or '(none in this version yet)'}; or give "
+                       f"published:PATH, a folder that `ata publish` wrote", file=text)
+
+
+def world_digest(resolved: dict[str, Any], code: dict[str, str]) -> str:
+    """The model revision of a resolved mission run with components of this `code`: the
+    digest of the world components' code and settings and the [mission] keys that shape the
+    scenarios (never the decision components)."""
+    slots = resolved.get("components", {})
+    kinds = {"task_model": "task_model", "human_model": "human_model",
+             "robot_model": "robot_model", "perturbations": "perturbation",
+             "injectors": "injector"}
+    world = []
+    for slot, kind in kinds.items():
+        value = slots.get(slot, [])
+        for name in value if isinstance(value, list) else [value]:
+            world.append([kind, name, code.get(f"{kind} {name}", "?"), resolved.get(name, {})])
+    mission = {k: resolved.get("mission", {}).get(k) for k in WORLD_MISSION_KEYS}
+    text = json.dumps({"mission": mission, "world": world}, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _cell(setting: str, level: str) -> str:
+    return f"{setting}/{level}"
+
+
+def _read_toml(path: Path) -> dict[str, Any]:
+    return loads_toml(path.read_text(encoding="utf-8"))
+
+
+def _eval_parts(folder: Path) -> tuple[dict[str, Any], dict[tuple[str, str, str], str]]:
+    """An eval folder's plugins.toml and its resolved missions' texts by cell."""
+    plugins = _read_toml(folder / "plugins.toml") if (folder / "plugins.toml").is_file() else {}
+    missions = {}
+    for path in sorted((folder / "missions").glob("*.resolved.toml")):
+        method, setting, level = path.name[:-len(".resolved.toml")].rsplit("__", 2)
+        missions[(method, setting, level)] = path.read_text(encoding="utf-8")
+    return plugins, missions
+
+
+def _run_parts(folder: Path, method: str) -> tuple[dict[str, Any], dict[tuple, str]]:
+    """An `ata run` folder's, as one method's."""
+    plugins = _read_toml(folder / "plugins.toml")
+    text = (folder / "mission.resolved.toml").read_text(encoding="utf-8")
+    m = loads_toml(text)["mission"]
+    return ({"code": {method: plugins.get("code", {})},
+             "inputs": {method: plugins.get("inputs", {})},
+             "methods": {method: plugins.get("components", {})}},
+            {(method, m["setting"], m["uncertainty"]): text})
+
+
+def folder_parts(folder: Path, results: Results) -> tuple[dict[str, Any], dict[tuple, str]]:
+    """plugins.toml (per method) and the resolved missions by (method, setting, level) of an
+    `ata eval` or `ata run` folder."""
+    folder = Path(folder)
+    if (folder / "eval.json").is_file() or (folder / "missions").is_dir():
+        return _eval_parts(folder)
+    if (folder / "mission.resolved.toml").is_file():
+        return _run_parts(folder, results.methods[0])
+    raise MissionError("", None, "holds no resolved missions (missions/ of `ata eval`, "
+                       "mission.resolved.toml of `ata run`): cannot tell what its rows were "
+                       "made with", file=str(folder))
+
+
+def publish(eval_dir: str | Path, out: str | Path) -> Path:
+    """Write the published rows of an `ata eval` folder to `out` (rows.csv.gz, manifest.json)."""
+    folder, out = Path(eval_dir), Path(out)
+    results = read_results(folder)
+    plugins, missions = _eval_parts(folder)
+    if not plugins.get("code"):
+        raise MissionError("", None, "its plugins.toml records no code digests: evaluate "
+                           "again with this version of ata, then publish", file=str(folder))
+    with open(folder / "results.csv", newline="", encoding="utf-8-sig") as f:
+        reader = csv.DictReader(f)
+        header = [c for c in reader.fieldnames or [] if c not in DROPPED]
+        rows = [{c: r[c] for c in header} for r in reader]
+    cols = results.columns
+    methods: dict[str, Any] = {}
+    for method in results.methods:
+        code = plugins["code"].get(method, {})
+        cells = {}
+        for s in results.settings:
+            for lv in results.levels:
+                sel = results.select(method, s, lv)
+                if not sel.any():
+                    continue
+                text = missions.get((method, s, lv))
+                if text is None:
+                    raise MissionError("", None, f"no resolved mission for {method} ({s}, {lv})",
+                                       file=str(folder))
+                ids = sorted(int(i) for i in cols["scenario"][sel])
+                cells[_cell(s, lv)] = {"seed": str(cols["seed"][sel][0]),
+                                       "scenarios": [ids[0], len(ids)],
+                                       "model": world_digest(loads_toml(text), code),
+                                       "mission": text}
+        methods[method] = {"code": code, "inputs": plugins.get("inputs", {}).get(method, {}),
+                           "versions": plugins.get("methods", {}).get(method, {}),
+                           "cells": cells}
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=header, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    data = gzip.compress(buffer.getvalue().encode(), mtime=0)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / ROWS).write_bytes(data)
+    manifest = {"format": FORMAT, "ata": __version__, "made_with": plugins.get("ata"),
+                "rows": len(rows), "rows_sha256": hashlib.sha256(data).hexdigest(),
+                "methods": methods}
+    (out / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n", encoding="utf-8")
+    return out
+
+
+def read_published(spec: str | Path) -> tuple[Results, dict[str, Any], Path]:
+    """(the rows, the manifest, the folder) of a set of published rows."""
+    folder = locate(spec)
+    manifest = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))
+    data = (folder / ROWS).read_bytes()
+    if manifest.get("rows_sha256") not in (None, hashlib.sha256(data).hexdigest()):
+        raise MissionError("", None, f"{ROWS} is not the file its manifest describes (another "
+                           "sha256): the set was changed", file=str(folder))
+    with tempfile.TemporaryDirectory() as tmp:
+        (Path(tmp) / "results.csv").write_bytes(gzip.decompress(data))
+        results = read_results(Path(tmp))
+    results.origin = [o.replace(str(Path(tmp) / "results.csv"), str(folder / ROWS))
+                      for o in results.origin]
+    return results, manifest, folder
+
+
+def current_code(mission_text: str) -> tuple[dict[str, str], dict[str, str]]:
+    """The digests of the code installed now of the components a resolved mission names, and
+    of the files (weights) their settings name."""
+    from ata.experiment.runner import load_session
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "mission.toml"
+        path.write_text(mission_text, encoding="utf-8")
+        session = load_session(str(path))
+        return session.code(), session.inputs()
+
+
+def check_pairing(mine: Results, folder: str | Path, manifest: dict[str, Any],
+                  methods: list[str]) -> None:
+    """Refuse (MissionError) to pair `mine` (read from `folder`) with the published `methods`
+    when a cell's scenarios are not among the published ones, its model revision differs, or
+    a published method's code differs from the code installed now."""
+    plugins, missions = folder_parts(Path(folder), mine)
+    published = manifest.get("methods", {})
+    cols = mine.columns
+    for method, setting, level in mine.cells():
+        cell = _cell(setting, level)
+        theirs = [(name, published[name]["cells"][cell]) for name in methods
+                  if cell in published.get(name, {}).get("cells", {})]
+        if not theirs:
+            continue
+        text = missions.get((method, setting, level))
+        if text is None:
+            raise MissionError("", None, f"no resolved mission for {method} ({setting}, "
+                               f"{level}): cannot check its model revision", file=str(folder))
+        model = world_digest(loads_toml(text), plugins.get("code", {}).get(method, {}))
+        sel = mine.select(method, setting, level)
+        seeds = set(map(str, cols["seed"][sel]))
+        ids = [int(i) for i in cols["scenario"][sel]]
+        for name, info in theirs:
+            if info["model"] != model:
+                raise MissionError("", None, f"{method} ({setting}, {level}) ran in another "
+                                   f"model than the published {name}: model revision {model} "
+                                   f"here, {info['model']} there (the world components' code "
+                                   "or settings, or the team, clock or uncertainty, differ); "
+                                   "the rows cannot be paired", file=str(folder))
+            first, count = info["scenarios"]
+            outside = [i for i in ids if not first <= i < first + count]
+            if seeds != {info["seed"]} or outside:
+                raise MissionError("", None, f"{method} ({setting}, {level}) ran other "
+                                   f"scenarios than the published {name}: seed "
+                                   f"{', '.join(sorted(seeds))}, ids {min(ids)}..{max(ids)} "
+                                   f"here; seed {info['seed']}, ids {first}..{first + count - 1}"
+                                   " there (ata eval runs the held-out ids; give the same "
+                                   "--seed)", file=str(folder))
+    for name in methods:
+        entry = published.get(name, {})
+        text = next(iter(entry.get("cells", {}).values()), {}).get("mission")
+        if text is None:
+            continue
+        now, weights = current_code(text)
+        changed = [k for k, v in entry.get("code", {}).items() if now.get(k) not in (None, v)]
+        other = [k for k, v in entry.get("inputs", {}).items() if weights.get(k) != v]
+        if other:
+            raise MissionError("", None, f"the published rows of {name} were made with other "
+                               f"weights than are installed now ({', '.join(other)}: "
+                               + "; ".join(f"{entry['inputs'][k]} there, {weights.get(k)} here"
+                                           for k in other)
+                               + "): evaluate it again (ata eval) and compare with that folder")
+        if changed:
+            raise MissionError("", None, f"the published rows of {name} were made with other "
+                               f"code than is installed now, of {', '.join(changed)} ("
+                               + "; ".join(f"{k} {entry['code'][k]} there, {now[k]} here"
+                                           for k in changed)
+                               + "): they are not this version's; evaluate it again (ata eval) "
+                               "and compare with that folder")
+
+
+def rerun_sample(spec: str | Path, per_cell: int = 2, methods: list[str] | None = None,
+                 columns: tuple[str, ...] = ()) -> list[str]:
+    """Rerun `per_cell` scenarios of every (method, cell) of a set (the first and the last of
+    each cell's rows, then evenly between) and return one line per value that is not identical
+    to the published one (empty: every rerun row is identical). Rows of a secret seed are not
+    rerun; a line says so."""
+    import numpy as np
+
+    from ata.experiment.runner import load_session, run_mission
+
+    results, manifest, _ = read_published(spec)
+    cols = results.columns
+    numeric = [c for c in results.columns if c not in ("method", "setting", "uncertainty",
+                                                       "scenario", "seed")]
+    wanted = list(columns) or numeric
+    out: list[str] = []
+    for method, entry in manifest["methods"].items():
+        if methods is not None and method not in methods:
+            continue
+        for cell, info in entry["cells"].items():
+            setting, level = cell.split("/")
+            sel = np.nonzero(results.select(method, setting, level))[0]
+            if str(info["seed"]).startswith("secret:"):
+                out.append(f"{method} ({cell}): a secret seed; not rerun")
+                continue
+            picks = sorted({int(sel[round(k * (sel.size - 1) / max(per_cell - 1, 1))])
+                            for k in range(min(per_cell, sel.size))})
+            with tempfile.TemporaryDirectory() as tmp:
+                path = Path(tmp) / "mission.toml"
+                path.write_text(info["mission"], encoding="utf-8")
+                for row in picks:
+                    sid = int(cols["scenario"][row])
+                    session = load_session(str(path), [f"mission.first_scenario={sid}",
+                                                       "mission.scenarios=1"])
+                    again = run_mission(session, workers=1).rows()[0]
+                    for c in wanted:
+                        if c not in again:
+                            continue
+                        a, b = float(cols[c][row]), float(again[c])
+                        if not (a == b or (np.isnan(a) and np.isnan(b))):
+                            out.append(f"{method} ({cell}) scenario {sid}: {c} {a!r} "
+                                       f"published, {b!r} rerun")
+    return out
+
+
+# -- a suite's method of published rows: mission = "published:METHOD" ----------------------------
+def method_spec(spec: str, base: Path, where: str, path: str) -> str:
+    """A suite's ``published:METHOD`` (the default set), ``published:SET:METHOD`` (a shipped set,
+    or a folder relative to the suite file) as ``published:FOLDER:METHOD``, FOLDER absolute."""
+    name, _, method = spec.split(":", 1)[1].rpartition(":")
+    candidates = [PUBLISHED / (name or DEFAULT)] + ([base / name, Path(name).expanduser()]
+                                                    if name else [])
+    folder = next((c for c in candidates if (c / MANIFEST).is_file()), None)
+    if folder is None:
+        shipped = sorted(p.parent.name for p in PUBLISHED.glob(f"*/{MANIFEST}"))
+        raise MissionError(where, "mission", f"{spec!r}: no published rows "
+                           f"{name or DEFAULT!r}; shipped sets: "
+                           f"{', '.join(shipped) or '(none in this version yet)'}; or "
+                           "published:FOLDER:METHOD, a folder that `ata publish` wrote",
+                           file=path)
+    manifest = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))
+    if method not in manifest.get("methods", {}):
+        raise MissionError(where, "mission", f"{spec!r}: the published rows in {folder} hold "
+                           f"no method {method!r}; they hold: "
+                           + ", ".join(manifest.get("methods", {})), file=path)
+    return f"published:{folder.resolve()}:{method}"
+
+
+def _split_source(source: str) -> tuple[Path, str]:
+    folder, _, method = source.split(":", 1)[1].rpartition(":")
+    return Path(folder), method
+
+
+def published_session(source: str, overrides: list[str]) -> Any:
+    """The session of a published method at the cell the suite's `overrides` choose (its
+    published resolved mission, with the evaluation's scenarios and seed), checked: its
+    scenarios among the published ones, its code and weights the installed ones."""
+    from ata.core.mission import parse_override
+    from ata.experiment.runner import load_session
+
+    folder, method = _split_source(source)
+    entry = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))["methods"][method]
+    keys = {tuple(parse_override(t)[0]): parse_override(t)[1] for t in overrides}
+    setting, level = keys.get(("mission", "setting")), keys.get(("mission", "uncertainty"))
+    cells = entry["cells"]
+    if setting is None or level is None:
+        if len(cells) != 1:
+            raise MissionError("", None, f"published {method} has rows at {', '.join(cells)}: "
+                               "give the suite's settings and uncertainty")
+        setting, level = next(iter(cells)).split("/")
+    info = cells.get(_cell(setting, level))
+    if info is None:
+        raise MissionError("", None, f"published {method} has no rows at setting {setting}, "
+                           f"{level} uncertainty; it has: {', '.join(cells)}")
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "mission.toml"
+        path.write_text(info["mission"], encoding="utf-8")
+        session = load_session(str(path), [t for t in overrides if parse_override(t)[0][1] in
+                                           ("scenarios", "seed", "first_scenario")])
+    m = session.mission
+    m.source = f"published:{folder}:{method}"
+    first, count = info["scenarios"]
+    lo, hi = m.settings.first_scenario, m.settings.first_scenario + m.settings.scenarios
+    if str(m.seed_label) != str(info["seed"]) or lo < first or hi > first + count:
+        raise MissionError("", None, f"published {method} ({setting}, {level}) holds seed "
+                           f"{info['seed']}, ids {first}..{first + count - 1}; the evaluation "
+                           f"asks for seed {m.seed_label}, ids {lo}..{hi - 1}: give the "
+                           "published seed and at most its scenarios")
+    code, weights = session.code(), session.inputs()
+    changed = [k for k, v in entry.get("code", {}).items() if code.get(k) not in (None, v)]
+    changed += [k for k, v in entry.get("inputs", {}).items() if weights.get(k) != v]
+    if changed:
+        raise MissionError("", None, f"the published rows of {method} were made with other code "
+                           f"or weights than are installed now ({', '.join(changed)}): "
+                           "evaluate the method itself instead")
+    return session
+
+
+def check_models(jobs: list[Any]) -> None:
+    """Refuse an evaluation whose methods run in another model than a published method they
+    are paired with in the same (setting, level)."""
+    for pub in jobs:
+        if not pub.mission.source.startswith("published:"):
+            continue
+        folder, method = _split_source(pub.mission.source)
+        manifest = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))
+        model = manifest["methods"][method]["cells"][_cell(pub.setting, pub.level)]["model"]
+        for job in jobs:
+            if job.mission.source.startswith("published:") or \
+                    (job.setting, job.level) != (pub.setting, pub.level):
+                continue
+            mine = world_digest(job.mission.resolved(), job.session.code())
+            if mine != model:
+                raise MissionError(f"method {job.method!r}", None, f"runs in another model than "
+                                   f"the published {method} ({job.setting}, {job.level}): model "
+                                   f"revision {mine} here, {model} there (the world components' "
+                                   "code or settings, or the team, clock or uncertainty, "
+                                   "differ); the rows cannot be paired", file=job.source)
+
+
+_ROWS_READ: dict[Path, Results] = {}
+
+
+def unit_part(mission: Any, ids: Any) -> dict[str, Any]:
+    """A work unit of a published method: its rows read from the set, as a unit's results
+    (`ata.experiment.units.run_batch`), in the order of `ids`; nothing is run."""
+    import numpy as np
+
+    folder, method = _split_source(mission.source)
+    if folder not in _ROWS_READ:
+        _ROWS_READ[folder] = read_published(folder)[0]
+    rows = _ROWS_READ[folder]
+    c = rows.columns
+    sel = np.nonzero(rows.select(method, mission.settings.setting,
+                                 mission.settings.uncertainty))[0]
+    where = {int(c["scenario"][k]): k for k in sel}
+    missing = [int(i) for i in ids if int(i) not in where]
+    if missing:
+        raise MissionError("", None, f"published {method} has no row for scenario {missing[0]}",
+                           file=str(folder))
+    pick = np.array([where[int(i)] for i in ids], dtype=np.int64)
+    out: dict[str, Any] = {"scenario": np.asarray(ids), "total": c["score"][pick].astype(float),
+                           "upper_bound": c["upper_bound"][pick].astype(float),
+                           "reallocations": c["reallocations"][pick].astype(np.int64)}
+    for name, values in c.items():
+        if name in ("method", "setting", "uncertainty", "scenario", "seed", "score",
+                    "upper_bound", "fraction_of_u", "reallocations"):
+            continue
+        column = values[pick].astype(float)
+        if not np.all(np.isnan(column)):      # a metric another method has, this one not
+            out[f"m:{name}"] = column
+    out["warnings"] = []
+    return out
