@@ -148,23 +148,29 @@ def method_code(mission: Mission, registry: Register
 RESOLVE = "resolving the method"
 
 
+def _ask_once(isolation: Isolation, req: dict[str, Any], what: str,
+              files: list[str] = (), folders: list[str] = ()) -> dict[str, Any]:
+    """One request to a sandboxed process started for it (shown every third-party package and
+    `files`) and ended after: the host's questions about code it does not import."""
+    binds, paths = code_locations()
+    process = DecisionProcess(_spare_key(isolation) + (req["op"],), None, ([], [], True),
+                              binds + list(files), isolation)
+    try:
+        header, _ = process.call({**req, "paths": paths + list(folders)},
+                                 isolation.startup_timeout_s, what)
+    finally:
+        process.close()
+    return header
+
+
 def resolver(isolation: Isolation):
-    """The `resolve` of `ata.experiment.remote.isolated_registry`: a sandboxed process, started
-    for it and ended after, that loads every plugin, validates the mission and answers the
-    resolved settings of the components the host did not load."""
+    """The `resolve` of `ata.experiment.remote.isolated_registry`: a sandboxed process loads
+    every plugin, validates the mission and answers the resolved settings of the components the
+    host did not load."""
     def resolve(raw: dict[str, Any], source: str, wanted: list[tuple[str, str]],
                 files: list[str] = (), folders: list[str] = ()) -> Any:
-        binds, paths = code_locations()
-        binds, paths = binds + list(files), paths + list(folders)
-        process = DecisionProcess(_spare_key(isolation) + ("resolve",), None, ([], [], True),
-                                  binds, isolation)
-        try:
-            header, _ = process.call({"op": "resolve", "mission": raw, "source": source,
-                                      "components": wanted, "paths": paths},
-                                     isolation.startup_timeout_s, RESOLVE)
-        finally:
-            process.close()
-        return header
+        return _ask_once(isolation, {"op": "resolve", "mission": raw, "source": source,
+                                     "components": wanted}, RESOLVE, files, folders)
     return resolve
 
 
@@ -174,18 +180,12 @@ def prober(isolation: Isolation):
     the installed packages do not change during a run)."""
     def probe(entry_point: str) -> Any:
         if entry_point not in _PROBED:
-            binds, paths = code_locations()
-            process = DecisionProcess(_spare_key(isolation) + ("probe",), None,
-                                      ([], [], True), binds, isolation)
             try:
-                header, _ = process.call({"op": "probe", "entry_point": entry_point,
-                                          "paths": paths}, isolation.startup_timeout_s,
-                                         f"importing the plugin {entry_point!r} alone")
-            except ChildFailed:
-                header = {"components": []}       # one that fails to load provides nothing
-            finally:
-                process.close()
-            _PROBED[entry_point] = header
+                _PROBED[entry_point] = _ask_once(
+                    isolation, {"op": "probe", "entry_point": entry_point},
+                    f"importing the plugin {entry_point!r} alone")
+            except ChildFailed:                   # one that fails to load provides nothing
+                _PROBED[entry_point] = {"components": []}
         return _PROBED[entry_point]
     return probe
 

@@ -117,19 +117,9 @@ def code_locations() -> tuple[list[str], list[str]]:
     points)."""
     binds, paths = [], []
     for ep, dist in _entry_points():
-        top = ep.value.split(":")[0].split(".")[0]
-        try:
-            spec = importlib.util.find_spec(top)
-        except (ImportError, ValueError):
-            spec = None
-        if spec is not None:
-            where = list(spec.submodule_search_locations or []) or \
-                ([spec.origin] if spec.origin else [])
-            for w in where:
-                w = os.path.realpath(w)
-                if os.path.exists(w):
-                    binds.append(w)
-                    paths.append(os.path.dirname(w))
+        for w in _folders(_top(ep.value)):
+            binds.append(w)
+            paths.append(os.path.dirname(w))
         record = getattr(dist, "_path", None)         # a PathDistribution's .dist-info folder
         if record is not None and os.path.isdir(str(record)):
             binds.append(os.path.realpath(str(record)))
