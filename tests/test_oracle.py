@@ -8,7 +8,8 @@ from ata import hookimpl
 from ata.core.errors import ContractError
 from ata.core.kernel import Simulation
 from ata.experiment.compare import compare
-from ata.experiment.report import results_markdown, summarize, table_rows
+from ata.experiment.report import summarize, table_rows
+from ata.experiment.results_md import results_markdown
 from ata.experiment.results import read_results
 from ata.experiment.runner import BASELINE_MISSION, load_session, run_mission, write_run
 from ata.model import fatigue

@@ -44,6 +44,7 @@ def report(run_dir: List[Path] = typer.Argument(
     from ata.core.errors import MissionError
     from ata.experiment import curves
     from ata.experiment import report as rep
+    from ata.experiment import results_md
     from ata.experiment.results import read_results
 
     if any(curves.is_training_folder(d) for d in run_dir):
@@ -56,7 +57,8 @@ def report(run_dir: List[Path] = typer.Argument(
         pairs = [tuple(_split(p)) for p in pair or []]
         if any(len(p) != 2 for p in pairs):
             raise MissionError("--pair", None, "names two methods: --pair A,B")
-        print(rep.results_markdown(read_results(run_dir), pairs or None, resamples), end="")
+        print(results_md.results_markdown(read_results(run_dir), pairs or None, resamples,
+                                          made_on=results_md.made_on(run_dir)), end="")
         return
     else:
         result, written = rep.write_report(run_dir, reference, not no_figures, resamples,

@@ -52,6 +52,8 @@ def build_component(registry: Register, mission: Mission, kind: str, name: str) 
     settings = mission.component_settings.get(name)
     if settings is None and getattr(info.factory, "Settings", None) is not None:
         settings = info.factory.Settings()
+        fit = getattr(settings, "for_team", None)       # as `validate` does for chosen ones
+        settings = fit(mission.settings) if callable(fit) else settings
     component = info.factory(settings, mission)
     try:
         component.component_name = name

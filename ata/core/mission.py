@@ -443,7 +443,11 @@ def _validate(raw: dict[str, Any], registry: Register, source: str) -> Mission:
                                    "settings")
             component_settings[name] = None
         else:
-            component_settings[name] = build_settings(cls, table, f"[{name}]")
+            built = build_settings(cls, table, f"[{name}]")
+            # settings that depend on the team (a family of shipped weights, the member that
+            # suits its size): the resolved mission records what they resolve to
+            fit = getattr(built, "for_team", None)
+            component_settings[name] = fit(settings) if callable(fit) else built
     # the optional plugins loaded because a component was named: the resolved mission then
     # names every plugin it needs (worker processes load them up front from it)
     settings.plugins = list(dict.fromkeys([*settings.plugins, *registry.loaded]))

@@ -370,7 +370,7 @@ def write_eval(out_dir: str | Path, suites: list[Suite], jobs: list[Job], result
                       "scenarios": j.mission.settings.scenarios, "seed": j.mission.seed_label,
                       "first_scenario": j.mission.settings.first_scenario,
                       "mission": j.mission.source} for j in jobs],
-            "rows": len(result.rows), "wall_s": result.wall_s,
+            "rows": len(result.rows), "wall_s": result.wall_s, "machine": runlog.machine(),
             "method_wall_s": result.method_wall_s, "warnings": result.warnings}
     (out / "eval.json").write_text(json.dumps(meta, indent=2, default=_json_default) + "\n",
                                    encoding="utf-8")

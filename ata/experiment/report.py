@@ -7,7 +7,7 @@ the share of POIs classified, the paired difference reference - method on the sa
 (the same setting, level, seed and scenario id) with its 95% bootstrap confidence interval, and
 P(reference beats method): the share of those paired scenarios where the reference scores more,
 ties counting half. Its figures add the paired difference method - reference of every method
-against one reference (`fig_paired`); `results_markdown` gives the two tables of
+against one reference (`fig_paired`); `ata.experiment.results_md` gives the tables of
 docs/RESULTS.md. A training run folder's curves are `ata.experiment.curves`'.
 """
 
@@ -218,49 +218,6 @@ def default_pairs(res: Results) -> list[tuple[str, str]]:
         return list(res.pairs)
     ref = DEFAULT_REFERENCE if DEFAULT_REFERENCE in res.methods else res.methods[0]
     return [(ref, m) for m in res.methods if m != ref]
-
-
-def results_markdown(res: Results, pairs: list[tuple[str, str]] | None = None,
-                     resamples: int = RESAMPLES, seed: int = BOOTSTRAP_SEED) -> str:
-    """The two tables of docs/RESULTS.md, in Markdown, a column per (setting, level): every
-    method's mean score [95% bootstrap CI] (mean fraction of U), and the paired differences
-    A - B on the same scenarios, mean [95% bootstrap CI], in bold where the interval is above 0
-    (the numbers of `summarize` with A as the reference). Pairs naming a method the results
-    lack are left out; `pairs` defaults to `default_pairs`."""
-    groups = [(s, lv) for s in res.settings for lv in res.levels]
-    columns = [f"({s}) {lv}" for s, lv in groups]
-    c = res.columns
-    rows = []
-    for m in res.methods:
-        row = [res.label(m)]
-        for s, lv in groups:
-            sel = res.select(m, s, lv)
-            if not sel.any():
-                row.append("-")
-                continue
-            mean, low, high = bootstrap_ci(c["score"][sel], resamples, seed=seed)
-            row.append(f"{mean:.1f} [{low:.0f}, {high:.0f}] "
-                       f"({nanmean(c['fraction_of_u'][sel]):.2f} U)")
-        rows.append(row)
-    lines = ["Mean total team performance [95% bootstrap CI] (mean fraction of U):", "",
-             *md_table(["method", *columns], rows), ""]
-    rows = []
-    for a, b in default_pairs(res) if pairs is None else pairs:
-        if a not in res.methods or b not in res.methods:
-            continue
-        row = [f"{res.label(a)} - {res.label(b)}"]
-        for s, lv in groups:
-            va, vb = paired_values(res, res.select(a, s, lv), res.select(b, s, lv))
-            if not va.size:                          # not run, or no paired scenarios
-                row.append("-")
-                continue
-            mean, low, high = bootstrap_ci(va - vb, resamples, seed=seed)
-            mark = "**" if low > 0 else ""
-            row.append(f"{mark}{mean:+.1f} [{low:+.1f}, {high:+.1f}]{mark}")
-        rows.append(row)
-    lines += ["Paired differences, A - B on the same scenarios, mean [95% bootstrap CI] (bold: "
-              "the interval is above 0):", "", *md_table(["paired difference", *columns], rows)]
-    return "\n".join(lines) + "\n"
 
 
 def figure_caption(stem: str, report: Report, paired: list[Paired] = ()) -> str:

@@ -30,7 +30,7 @@ from ata.experiment.units import (RUN_CHUNK, chunks_of, fixed_chunks, make_units
 from ata.runtime import memory
 from ata.runtime.executors import Executor, ProcessExecutor, SerialExecutor
 from ata.runtime.heldout import EVAL_FIRST_SCENARIO
-from ata.runtime.inputs import file_digest
+from ata.runtime.inputs import file_digest, shipped_setting
 
 BUILTIN_MISSION = Path(__file__).resolve().parent.parent / "missions" / "default.toml"
 """`ata run`'s default: the full ATA-HRL method with its shipped weights."""
@@ -352,11 +352,30 @@ def summary_rows(session: Session, result: RunResult) -> list[tuple[str, str]]:
                             f"event probability {m.event_probability})"),
             ("scenarios", f"{s['scenarios']} (ids {first}..{first + s['scenarios'] - 1}, root "
                           f"seed {m.seed_label})"),
+            *weights_rows(session),
             ("team performance", f"{s['score_mean']:.1f}{ci}"),
             ("fraction of U", f"{s['fraction_of_u']:.3f} (U: the capacity-free bound)"),
             ("POIs classified", f"{100 * s.get('classified_share_mean', float('nan')):.1f}%"),
             ("reallocations", f"{s['reallocations_mean']:.2f} per scenario"),
             ("wall time", f"{s['wall_s']:.1f} s")]
+
+
+def weights_rows(session: Session) -> list[tuple[str, str]]:
+    """A summary line naming the files of weights the components read (their settings that
+    name a file: ``builtin:NAME`` or a path), each with the components that read it and, for a
+    shipped one, the team setting it was trained for."""
+    m, readers = session.mission, {}
+    for key in session.inputs():
+        comp, field_name = key.split(".", 1)
+        value = getattr(m.component_settings[comp], field_name)
+        readers.setdefault(value, []).append(comp)
+    rows = []
+    for value, comps in readers.items():
+        setting = shipped_setting(value)
+        made = "" if setting is None else f"; shipped for setting {setting}" + (
+            ", the nearest to this team's size" if m.settings.setting == "custom" else "")
+        rows.append(("weights", f"{value} (read by {', '.join(comps)}{made})"))
+    return rows
 
 
 def write_run(out_dir: str | Path, session: Session, result: RunResult) -> Path:

@@ -1,12 +1,22 @@
 """Files that a component setting names: ``builtin:NAME`` (a checkpoint shipped in ata/weights)
 or a path. Trainers and components read checkpoints through ``ata.training``, which takes these
-from here; a session hashes them into its plan keys (``Session.inputs``)."""
+from here; a session hashes them into its plan keys (``Session.inputs``).
+
+A *family* of shipped weights is named without its setting: ``builtin:ata_hrl`` stands for
+``ata_hrl_a`` (trained on setting (a)) and ``ata_hrl_b_ft`` (fine-tuned on (b)). `weights_for`
+resolves a family to the member that suits a mission's team: the member of the mission's own
+setting, or for a custom team the member whose setting is nearest in size (`team_distance`).
+"""
 
 from __future__ import annotations
 
 import hashlib
 import json
+import math
 from pathlib import Path
+from typing import Any
+
+from ata.core.mission import TEAM_SETTINGS
 
 WEIGHTS = Path(__file__).resolve().parents[1] / "weights"
 """Where ``builtin:NAME`` checkpoints live (shipped with the package)."""
@@ -74,3 +84,51 @@ def pin_weights() -> dict[str, str]:
     digests = {p.name: _sha256(p) for p in sorted(WEIGHTS.glob("*.pt"))}
     PINNED.write_text(json.dumps(digests, indent=2) + "\n", encoding="utf-8")
     return digests
+
+
+def family(name: str) -> dict[str, str]:
+    """The shipped members of a family of weights, setting -> checkpoint name: ``NAME_S.pt``
+    (trained on setting S) or ``NAME_S_ft.pt`` (fine-tuned on it; preferred)."""
+    members: dict[str, str] = {}
+    for path in sorted(WEIGHTS.glob(f"{name}_*.pt")):
+        suffix = path.stem[len(name) + 1:]
+        for setting in TEAM_SETTINGS:       # sorted: NAME_S before NAME_S_ft, which wins
+            if suffix in (setting, f"{setting}_ft"):
+                members[setting] = path.stem
+    return members
+
+
+def team_distance(humans: int, robots: int, tasks: int, setting: str) -> float:
+    """How far a team is from a team setting's: the sum over humans, robots and POIs of the
+    absolute log-ratio of the sizes (a team twice the setting's in every count: 3 log 2)."""
+    base = TEAM_SETTINGS[setting]
+    return sum(abs(math.log(x / y)) for x, y in ((humans, base.humans), (robots, base.robots),
+                                                  (tasks, base.tasks)))
+
+
+def weights_for(spec: str, team: Any) -> str:
+    """The checkpoint a setting value names for a team (`team`: the [mission] settings, with
+    ``setting``, ``humans``, ``robots`` and ``tasks``): ``builtin:FAMILY`` (no file of that
+    name, but members, see `family`) becomes its member of the team's setting, or for a custom
+    team its member nearest in size; any other value is returned as it is."""
+    if not spec.startswith("builtin:"):
+        return spec
+    name = spec.split(":", 1)[1]
+    members = family(name)
+    if (WEIGHTS / f"{name}.pt").is_file() or not members:
+        return spec
+    setting = team.setting if team.setting in members else min(
+        members, key=lambda s: (team_distance(team.humans, team.robots, team.tasks, s), s))
+    return f"builtin:{members[setting]}"
+
+
+def shipped_setting(spec: str) -> str | None:
+    """The team setting a ``builtin:`` checkpoint was trained (or fine-tuned) on, read from its
+    name; None for a path or a name of no setting."""
+    if not spec.startswith("builtin:"):
+        return None
+    stem = spec.split(":", 1)[1]
+    for setting in TEAM_SETTINGS:
+        if stem.endswith(f"_{setting}") or stem.endswith(f"_{setting}_ft"):
+            return setting
+    return None

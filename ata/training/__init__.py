@@ -32,14 +32,18 @@ checkpoints written atomically (a temporary file, then a rename), so a killed ru
 its last checkpoint with ``ata train --resume DIR``. ``PhaseLoop`` runs a trainer's phases
 (``Phase``) over it: counters, log rows, validation, best.pt, checkpoints and resume, the same
 for every trainer (both built-in ones use it).
+
+A component's ``checkpoint`` setting may name a family of shipped weights (``builtin:ata_hrl``:
+``ata_hrl_a`` and ``ata_hrl_b_ft``); ``weights_for(spec, team)`` resolves it to the member that
+suits the mission's team, called from the settings' ``for_team`` (docs/plugins.md).
 """
 
-from ata.runtime.inputs import WEIGHTS, file_digest, resolve
+from ata.runtime.inputs import WEIGHTS, family, file_digest, resolve, weights_for
 from ata.training.checkpoints import (TRAINING_ID_LIMIT, VALIDATION_SEED_OFFSET, CheckpointError,
                                       load_cached, read_checkpoint, trained_on, trained_parts)
 from ata.training.loop import Phase, PhaseLoop
 from ata.training.run import TrainRun
 
 __all__ = ["TRAINING_ID_LIMIT", "VALIDATION_SEED_OFFSET", "WEIGHTS", "CheckpointError", "Phase",
-           "PhaseLoop", "TrainRun", "file_digest", "load_cached", "read_checkpoint", "resolve",
-           "trained_on", "trained_parts"]
+           "PhaseLoop", "TrainRun", "family", "file_digest", "load_cached", "read_checkpoint",
+           "resolve", "trained_on", "trained_parts", "weights_for"]

@@ -11,7 +11,7 @@ docs).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -22,6 +22,7 @@ from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext, Observation, SimState
 from ata.plugins.ata_hrl import decode as D
 from ata.plugins.ata_hrl.checkpoint import load_net, require_trained, trained_ranges
+from ata.training import weights_for
 from ata.plugins.ata_hrl.decoder import Decoder
 from ata.plugins.ata_hrl.inputs import DecodeSettings
 from ata.plugins.ata_hrl.features import (GROUPS, inherent_features, seen_state, state_column,
@@ -90,21 +91,32 @@ def decoder_start(ctx: DecisionContext, seen: dict[str, np.ndarray] | None
             1.0 - state_column(seen, "humans", "idleness"))
 
 
+WEIGHTS_FAMILY = "builtin:ata_hrl"
+"""The default checkpoint: the family of shipped ATA-HRL weights, (a)'s or (b)'s, whichever
+suits the mission's team (``ata.training.weights_for``)."""
+
+
 class LearnedComponent:
     """Settings, the network and the way of deciding, shared by the ITA and CTR components."""
 
     @dataclass
     class Settings:
-        checkpoint: str = param("builtin:ata_hrl_a", help="trained weights: a path or "
-                                "builtin:NAME")
+        checkpoint: str = param(WEIGHTS_FAMILY, help="trained weights: a path, builtin:NAME, "
+                                "or a family (builtin:ata_hrl: the shipped member that suits "
+                                "the team's size)")
         sample: bool = param(False, help="sample decisions (each scenario from its own random "
                              "stream) instead of taking the mode")
         learned: bool = param(True, help="false: decide by the greedy prior alone (the learned "
                               "part switched off)")
 
+        def for_team(self, team: Any) -> Any:
+            """The settings for the mission's team: a family of weights becomes its member."""
+            return replace(self, checkpoint=weights_for(self.checkpoint, team))
+
     def __init__(self, settings: "LearnedComponent.Settings", mission: Any,
                  net: ATAHRLNet | None = None):
-        self.settings = settings
+        # settings made without a mission's validation (a notebook's) name a family alone
+        self.settings = settings.for_team(mission.settings) if mission is not None else settings
         self.from_checkpoint = net is None
         self.net = net if net is not None else load_net(settings.checkpoint)
         self.recorder: Recorder | None = None
@@ -368,8 +380,9 @@ class AuxReconstructor:
 
     @dataclass
     class Settings:
-        checkpoint: str = param("builtin:ata_hrl_a", help="trained weights: a path or "
-                                "builtin:NAME")
+        checkpoint: str = param(WEIGHTS_FAMILY, help="trained weights: a path, builtin:NAME, "
+                                "or a family (builtin:ata_hrl: the shipped member that suits "
+                                "the team's size)")
         parts: list[str] = param(["fatigue", "robots", "tasks", "status"],
                                  choices=("fatigue", "robots", "tasks", "status"),
                                  help="what it reconstructs; the rest stays as observed "
@@ -377,9 +390,14 @@ class AuxReconstructor:
         guesses: list[str] = param(["captured", "committed"], choices=("captured", "committed"),
                                    help="which of the status head's guesses reach the policies")
 
+        def for_team(self, team: Any) -> Any:
+            """The settings for the mission's team: a family of weights becomes its member."""
+            return replace(self, checkpoint=weights_for(self.checkpoint, team))
+
     def __init__(self, settings: "AuxReconstructor.Settings", mission: Any,
                  net: ATAHRLNet | None = None, guess: bool = True):
-        self.settings = settings if settings is not None else self.Settings()
+        settings = settings if settings is not None else self.Settings()
+        self.settings = settings.for_team(mission.settings) if mission is not None else settings
         self.from_checkpoint = net is None       # a trainer's live network reports nothing
         if self.from_checkpoint:
             require_trained(self.settings.checkpoint, "aux", "the aux reconstructor")
