@@ -22,7 +22,7 @@ uncertainty = ["low"]
 scenarios = 3
 {methods}"""
 REFERENCES = """[[method]]
-name = "greedy-short"
+name = "greedy (600 s/episode)"
 mission = "builtin:greedy"
 set = ["mission.horizon_s=600.0"]
 [[method]]
@@ -102,7 +102,7 @@ def test_a_policy_in_a_file_from_check_to_a_paired_table_then_edited(published_f
         r = cli("compare", "mine", "published:pub")
     assert r.exit_code == 0, r.output
     assert "none rerun" in r.output
-    for base in ("greedy-short", "random"):
+    for base in ("greedy (600 s/episode)", "random"):
         line = next(x for x in r.output.splitlines() if f"nearest - {base}" in x)
         assert "│      3 │" in line        # 3 paired scenarios
 
@@ -134,8 +134,11 @@ def test_pairing_refuses_other_scenarios_or_other_reference_code(published_fixtu
     r = cli("compare", "mine", "published:pub", "--base", "random")
     assert r.exit_code == 2
     assert "made with other code than is installed now, of policy random" in r.output
-    r = cli("compare", "mine", "published")
-    assert r.exit_code == 2 and "no published rows 'paper'" in r.output
+    r = cli("compare", "mine", "published:no_such_set")
+    assert r.exit_code == 2 and "no published rows 'no_such_set'" in r.output
+    assert "shipped sets: paper" in r.output
+    r = cli("compare", "mine", "published")      # the shipped paper set: mine is of 600 s
+    assert r.exit_code == 2 and "ran in another model than the published ATA-HRL" in r.output
     assert root
 
 
@@ -245,8 +248,8 @@ def test_check_component_from_the_command_line_fails_with_what_broke(workspace, 
 def test_a_suite_names_published_methods_and_reads_their_rows(published_fixture, cli):
     root = published_fixture.parent
     (root / "vs.toml").write_text(SUITE.format(name="vs", methods=MINE) + """[[method]]
-name = "greedy-short"
-mission = "published:pub:greedy-short"
+name = "greedy (600 s/episode)"
+mission = "published:pub:greedy (600 s/episode)"
 [[method]]
 name = "random"
 mission = "published:pub:random"

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from ata.core.mission import ComponentSlots, MissionSettings
+from ata.core.mission import ComponentSlots, MissionSettings, loads_toml
 from ata.core.registry import OPTIONAL_PLUGINS, collect_components, get_plugin_manager
 from ata.core.settings import describe
 
@@ -96,8 +96,13 @@ def test_every_experiment_names_the_commands_that_make_and_read_it(folder):
     named = {tok for c in makes for tok in c.split() if tok.endswith(".toml")}
     for suite in named:
         assert (ROOT / suite).is_file(), f"{folder.name}: {suite} does not exist"
+    # a mission file of the folder is run by a command or named by a suite one runs
+    missions = {str((ROOT / suite).parent.joinpath(m["mission"]).resolve().relative_to(ROOT))
+                for suite in named for m in loads_toml((ROOT / suite).read_text()).get(
+                    "method", []) if not m["mission"].startswith(("builtin:", "published:"))}
     for suite in folder.glob("*.toml"):
-        assert str(suite.relative_to(ROOT)) in named, f"{suite.name} is run by no command"
+        assert str(suite.relative_to(ROOT)) in named | missions, \
+            f"{suite.name} is run by no command"
 
 
 @pytest.mark.parametrize("folder", _experiment_folders(), ids=lambda p: p.name)

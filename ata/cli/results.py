@@ -32,12 +32,17 @@ def report(run_dir: List[Path] = typer.Argument(
                                               help="Write here (default: the first DIR)."),
            no_figures: bool = typer.Option(False, "--no-figures", help="Write no figures."),
            markdown: bool = typer.Option(
-               False, "--markdown", help="Print the two tables of docs/RESULTS.md as Markdown "
-                                         "instead: every method's score, and the paired "
-                                         "differences of --pair (or of the suite's pairs)."),
+               False, "--markdown", help="Print the tables of docs/RESULTS.md as Markdown "
+                                         "instead: every method's score, the paired "
+                                         "differences of --pair (or of the suite's pairs) "
+                                         "and the time per scenario."),
            pair: Optional[List[str]] = typer.Option(
                None, "--pair", metavar="A,B", help="A paired difference A - B for --markdown "
                                                    "(repeatable)."),
+           column: str = typer.Option(
+               "score", "--column", "-c", metavar="COL",
+               help="The column of --markdown's paired differences (default: score; "
+                    "expected_score for the expected points)."),
            resamples: int = ResamplesOption) -> None:
     """Tables (with bootstrap confidence intervals) and figures of an evaluation, or the
     learning curves of a training run."""
@@ -45,7 +50,7 @@ def report(run_dir: List[Path] = typer.Argument(
     from ata.experiment import curves
     from ata.experiment import report as rep
     from ata.experiment import results_md
-    from ata.experiment.results import read_results
+    from ata.experiment.results import check_column, read_results
 
     if any(curves.is_training_folder(d) for d in run_dir):
         if len(run_dir) > 1:
@@ -57,8 +62,11 @@ def report(run_dir: List[Path] = typer.Argument(
         pairs = [tuple(_split(p)) for p in pair or []]
         if any(len(p) != 2 for p in pairs):
             raise MissionError("--pair", None, "names two methods: --pair A,B")
-        print(results_md.results_markdown(read_results(run_dir), pairs or None, resamples,
-                                          made_on=results_md.made_on(run_dir)), end="")
+        res = read_results(run_dir)
+        check_column(res, column, str(run_dir[0]))
+        print(results_md.results_markdown(res, pairs or None, resamples,
+                                          made_on=results_md.made_on(run_dir), column=column),
+              end="")
         return
     else:
         result, written = rep.write_report(run_dir, reference, not no_figures, resamples,

@@ -3,13 +3,15 @@ were made with, so that a new method is paired against them without running them
 
 A set of published rows is a folder (under ``ata/published/NAME``, or anywhere) of two files:
 
-* ``rows.csv.gz``: the evaluation's results.csv, gzipped, without its ``wall_s`` column (the
-  time a row took depends on the machine, not on the method);
+* ``rows.csv.gz``: the evaluation's results.csv, gzipped, without its time columns (``wall_s``,
+  ``milp_solve_s``: the time a row took depends on the machine, not on the method);
 * ``manifest.json``: the ata version, the seed, and per method its component versions, the
   digest of each component's code (``code``), the digests of the weights it read (``inputs``),
   and per (setting, level) cell its resolved mission, its scenario ids (first, count) and the
   *model revision* of the cell: the digest of the world the scenarios ran in (the world
-  components' code, their settings and the [mission] keys that shape the scenarios).
+  components' code, their settings and the [mission] keys that shape the scenarios), with the
+  cell's mean time per scenario (``time_per_scenario_s``) and the machine that took it
+  (``machine``, as the evaluation's eval.json records it).
 
 `publish` writes one from an `ata eval` folder (`ata publish EVAL_DIR --out DIR`). `check_pairing`
 refuses to pair a folder of results against a set when a cell's scenarios are not among the
@@ -32,9 +34,12 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ata import __version__
 from ata.core.errors import MissionError
 from ata.core.mission import loads_toml
+from ata.experiment.folders import safe_name
 from ata.experiment.results import Results, read_results
 
 PUBLISHED = Path(__file__).resolve().parent.parent / "published"
@@ -47,8 +52,8 @@ WORLD_KINDS = ("task_model", "human_model", "robot_model", "perturbation", "inje
 """The components whose code and settings make the world a method is scored in."""
 WORLD_MISSION_KEYS = ("setting", "humans", "robots", "tasks", "horizon_s", "epoch_s",
                       "tick_s", "uncertainty", "fatigue_variance", "event_probability")
-DROPPED = ("wall_s",)
-"""results.csv columns left out of published rows."""
+DROPPED = ("wall_s", "milp_solve_s")
+"""results.csv columns left out of published rows: times, which depend on the machine."""
 DEFINED_COLUMNS = ("score", "upper_bound", "reallocations")
 """The columns `rerun_sample` always compares (every other numeric column of the rows too)."""
 
@@ -106,6 +111,16 @@ def _eval_parts(folder: Path) -> tuple[dict[str, Any], dict[tuple[str, str, str]
     for path in sorted((folder / "missions").glob("*.resolved.toml")):
         method, setting, level = path.name[:-len(".resolved.toml")].rsplit("__", 2)
         missions[(method, setting, level)] = path.read_text(encoding="utf-8")
+    # the files are named by a safe form of the method's label ('w/o.AUX' -> 'w_o.AUX'):
+    # eval.json's jobs give the labels
+    try:
+        jobs = json.loads((folder / "eval.json").read_text(encoding="utf-8")).get("jobs", [])
+    except (OSError, ValueError):
+        jobs = []
+    for job in jobs:
+        key = (safe_name(job["method"], "method"), job["setting"], job["uncertainty"])
+        if key in missions:
+            missions[(job["method"], job["setting"], job["uncertainty"])] = missions[key]
     return plugins, missions
 
 
@@ -160,9 +175,11 @@ def publish(eval_dir: str | Path, out: str | Path) -> Path:
                     raise MissionError("", None, f"no resolved mission for {method} ({s}, {lv})",
                                        file=str(folder))
                 ids = sorted(int(i) for i in cols["scenario"][sel])
+                wall = cols["wall_s"][sel] if "wall_s" in cols else np.array([np.nan])
                 cells[_cell(s, lv)] = {"seed": str(cols["seed"][sel][0]),
                                        "scenarios": [ids[0], len(ids)],
                                        "model": world_digest(loads_toml(text), code),
+                                       "time_per_scenario_s": round(float(np.mean(wall)), 4),
                                        "mission": text}
         methods[method] = {"code": code, "inputs": plugins.get("inputs", {}).get(method, {}),
                            "versions": plugins.get("methods", {}).get(method, {}),
@@ -174,9 +191,13 @@ def publish(eval_dir: str | Path, out: str | Path) -> Path:
     data = gzip.compress(buffer.getvalue().encode(), mtime=0)
     out.mkdir(parents=True, exist_ok=True)
     (out / ROWS).write_bytes(data)
+    try:
+        machine = json.loads((folder / "eval.json").read_text(encoding="utf-8")).get("machine")
+    except (OSError, ValueError):
+        machine = None
     manifest = {"format": FORMAT, "ata": __version__, "made_with": plugins.get("ata"),
                 "rows": len(rows), "rows_sha256": hashlib.sha256(data).hexdigest(),
-                "methods": methods}
+                "machine": machine, "methods": methods}
     (out / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n", encoding="utf-8")
     return out
 
@@ -270,13 +291,14 @@ def check_pairing(mine: Results, folder: str | Path, manifest: dict[str, Any],
 
 
 def rerun_sample(spec: str | Path, per_cell: int = 2, methods: list[str] | None = None,
-                 columns: tuple[str, ...] = ()) -> list[str]:
+                 columns: tuple[str, ...] = (), cells: dict[str, list[str]] | None = None
+                 ) -> list[str]:
     """Rerun `per_cell` scenarios of every (method, cell) of a set (the first and the last of
     each cell's rows, then evenly between) and return one line per value that is not identical
-    to the published one (empty: every rerun row is identical). Rows of a secret seed are not
-    rerun; a line says so."""
-    import numpy as np
-
+    to the published one (empty: every rerun row is identical). `cells`: method -> the cells
+    ("SETTING/LEVEL") to rerun of it (default: all). Rows of a secret seed are not rerun, nor
+    a row whose MILP solve reached a limit (``milp_status`` 1: where a time limit stops it
+    depends on the machine's speed); a line says so."""
     from ata.experiment.runner import load_session, run_mission
 
     results, manifest, _ = read_published(spec)
@@ -289,6 +311,8 @@ def rerun_sample(spec: str | Path, per_cell: int = 2, methods: list[str] | None 
         if methods is not None and method not in methods:
             continue
         for cell, info in entry["cells"].items():
+            if cells is not None and cell not in cells.get(method, ()):
+                continue
             setting, level = cell.split("/")
             sel = np.nonzero(results.select(method, setting, level))[0]
             if str(info["seed"]).startswith("secret:"):
@@ -301,6 +325,10 @@ def rerun_sample(spec: str | Path, per_cell: int = 2, methods: list[str] | None 
                 path.write_text(info["mission"], encoding="utf-8")
                 for row in picks:
                     sid = int(cols["scenario"][row])
+                    if "milp_status" in cols and cols["milp_status"][row] == 1:
+                        out.append(f"{method} ({cell}) scenario {sid}: a MILP solve reached "
+                                   "a limit; not rerun")
+                        continue
                     session = load_session(str(path), [f"mission.first_scenario={sid}",
                                                        "mission.scenarios=1"])
                     again = run_mission(session, workers=1).rows()[0]
@@ -415,8 +443,6 @@ _ROWS_READ: dict[Path, Results] = {}
 def unit_part(mission: Any, ids: Any) -> dict[str, Any]:
     """A work unit of a published method: its rows read from the set, as a unit's results
     (`ata.experiment.units.run_batch`), in the order of `ids`; nothing is run."""
-    import numpy as np
-
     folder, method = _split_source(mission.source)
     if folder not in _ROWS_READ:
         _ROWS_READ[folder] = read_published(folder)[0]

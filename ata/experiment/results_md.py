@@ -17,13 +17,14 @@ from ata.experiment.runlog import machine_text
 
 def results_markdown(res: Results, pairs: list[tuple[str, str]] | None = None,
                      resamples: int = RESAMPLES, seed: int = BOOTSTRAP_SEED,
-                     made_on: list[str] = ()) -> str:
+                     made_on: list[str] = (), column: str = "score") -> str:
     """The three tables of docs/RESULTS.md, in Markdown, a column per (setting, level): every
     method's mean score [95% bootstrap CI] (mean fraction of U), the paired differences A - B
     on the same scenarios, mean [95% bootstrap CI], in bold where the interval is above 0 (the
     numbers of `summarize` with A as the reference), and every method's mean time per scenario
-    (`made_on`: the machines and workers that ran it, one line each). Pairs naming a method
-    the results lack are left out; `pairs` defaults to `default_pairs`."""
+    (`made_on`: the machines and workers that ran it, one line each). The paired differences
+    are of `column` (default the drawn score; ``expected_score``: the expected points). Pairs
+    naming a method the results lack are left out; `pairs` defaults to `default_pairs`."""
     groups = [(s, lv) for s in res.settings for lv in res.levels]
     columns = [f"({s}) {lv}" for s, lv in groups]
     c = res.columns
@@ -47,7 +48,7 @@ def results_markdown(res: Results, pairs: list[tuple[str, str]] | None = None,
             continue
         row = [f"{res.label(a)} - {res.label(b)}"]
         for s, lv in groups:
-            va, vb = paired_values(res, res.select(a, s, lv), res.select(b, s, lv))
+            va, vb = paired_values(res, res.select(a, s, lv), res.select(b, s, lv), column)
             if not va.size:                          # not run, or no paired scenarios
                 row.append("-")
                 continue
@@ -55,8 +56,10 @@ def results_markdown(res: Results, pairs: list[tuple[str, str]] | None = None,
             mark = "**" if low > 0 else ""
             row.append(f"{mark}{mean:+.1f} [{low:+.1f}, {high:+.1f}]{mark}")
         rows.append(row)
-    lines += ["Paired differences, A - B on the same scenarios, mean [95% bootstrap CI] (bold: "
-              "the interval is above 0):", "", *md_table(["paired difference", *columns], rows)]
+    what = "" if column == "score" else f" of `{column}`"
+    lines += [f"Paired differences{what}, A - B on the same scenarios, mean [95% bootstrap CI] "
+              "(bold: the interval is above 0):", "",
+              *md_table(["paired difference", *columns], rows)]
     if "wall_s" in c:
         rows = [[res.label(m)] + [fmt_time(c["wall_s"][res.select(m, s, lv)]) for s, lv in groups]
                 for m in res.methods]
