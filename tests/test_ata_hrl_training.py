@@ -104,7 +104,8 @@ def log_rows(run_dir) -> list[dict]:
 @pytest.mark.parametrize("phase, step, extra", [
     ("aux", "2", ()), ("status", "2", ()), ("ita", "1", ()),
     pytest.param("cond", "0", RULE_ROUNDS, marks=pytest.mark.slow),  # before any checkpoint
-    ("cond", "2", RULE_ROUNDS),    # killed in the rule's second round, the first saved
+    # killed in the rule's second round, the first saved (100 s: slow)
+    pytest.param("cond", "2", RULE_ROUNDS, marks=pytest.mark.slow),
     ("ctr", "2", ())])
 def test_resume_after_kill_ends_with_the_same_weights_and_log(tmp_path, phase, step, extra):
     s = session(*extra) if extra is not RULE_ROUNDS else load_session(

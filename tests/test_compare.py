@@ -266,15 +266,32 @@ def test_report_markdown_prints_the_results_tables(cli, tmp_path):
     head = ("Paired differences, A - B on the same scenarios, mean [95% bootstrap CI] (bold: "
             "the interval is above 0):\n\n| paired difference | (a) low |\n|---|---:|\n")
     lead = "Mean total team performance [95% bootstrap CI] (mean fraction of U):\n\n"
+    # every row's wall_s is 0.1; the machine is the one eval.json records, with the workers
+    times = ("\nTime per scenario, seconds (the mean of `wall_s`: each work unit's wall time "
+             "shared among its scenarios; a method's first unit pays for its imports and "
+             "weights), made on CPU X, 8 cores (python 3.11.7; torch 2.13.0), 2 worker "
+             "processes:\n\n| method | (a) low |\n|---|---:|\n| ATA-HRL | 0.100 |\n"
+             "| greedy | 0.100 |\n")
+    meta = json.loads((ev / "eval.json").read_text())
+    meta["machine"] = {"cpu": "CPU X", "cores": 8, "python": "3.11.7", "torch": "2.13.0"}
+    meta["arguments"] = {"executor": {"executor": "process", "workers": 2}}
+    (ev / "eval.json").write_text(json.dumps(meta))
     # the suite's pairs (one naming a method the results lack: left out)
     out = cli("report", ev, "--markdown")
     assert out.exit_code == 0, out.output
-    assert out.output == lead + table + "\n" + head + "| greedy - ATA-HRL | -10.0 [-10.0, -10.0] |\n"
+    assert out.output == (lead + table + "\n" + head
+                          + "| greedy - ATA-HRL | -10.0 [-10.0, -10.0] |\n" + times)
     assert not (ev / "report.md").exists()
     # --pair instead; bold where the interval is above 0
     out = cli("report", ev, "--markdown", "--pair", "ATA-HRL,greedy")
     assert out.output == lead + table + "\n" + head + \
-        "| ATA-HRL - greedy | **+10.0 [+10.0, +10.0]** |\n"
+        "| ATA-HRL - greedy | **+10.0 [+10.0, +10.0]** |\n" + times
+    # the paired table of another column names it
+    out = cli("report", ev, "--markdown", "--pair", "ATA-HRL,greedy", "-c", "expected_score")
+    assert "Paired differences of `expected_score`, A - B" in out.output
+    assert "| ATA-HRL - greedy | **+10.0 [+10.0, +10.0]** |" in out.output
+    assert_user_error(cli("report", ev, "--markdown", "-c", "nothere"),
+                      "--column: no numeric column 'nothere'")
     assert_user_error(cli("report", ev, "--markdown", "--pair", "ATA-HRL"),
                       "--pair: names two methods")
     # without pairs: the reference against every other method

@@ -21,9 +21,10 @@ def test_the_paper_set_ships_every_method_and_cell_of_the_suite():
 
 
 def test_one_scenario_of_every_method_rerun_is_identical():
-    # each method in one cell, the cells taken in turn, so that every cell is met: one
-    # scenario each (the first of the cell's rows)
-    cells = {m: [CELLS[i % len(CELLS)]] for i, m in enumerate(METHODS)}
+    # each method in one cell of setting (a), the levels taken in turn: one scenario each (the
+    # first of the cell's rows); the slow test below reruns every cell, (b)'s included
+    levels = [c for c in CELLS if c.startswith("a/")]
+    cells = {m: [levels[i % len(levels)]] for i, m in enumerate(METHODS)}
     check_published_rows("published", per_cell=1, cells=cells)
 
 
