@@ -31,3 +31,28 @@ def test_one_scenario_of_every_method_rerun_is_identical():
 @pytest.mark.slow
 def test_two_scenarios_of_every_method_and_cell_rerun_are_identical():
     check_published_rows("published", per_cell=2)
+
+
+def test_each_cell_records_the_weights_it_read_and_they_are_the_installed_ones():
+    from ata.experiment.published import mission_inputs
+    for method, entry in MANIFEST["methods"].items():
+        for cell, info in entry["cells"].items():
+            assert mission_inputs(info["mission"]) == info["inputs"], (method, cell)
+    cells = MANIFEST["methods"]["ATA-HRL"]["cells"]
+    assert cells["a/low"]["inputs"] != cells["b/low"]["inputs"]     # (a)'s and (b)'s weights
+
+
+def test_a_suite_reads_a_published_method_in_both_settings_without_running_it(tmp_path, cli):
+    suite = tmp_path / "suite.toml"
+    suite.write_text('[suite]\nsettings = ["a", "b"]\nuncertainty = ["high"]\nscenarios = 2\n'
+                     'seed = 0\n[[method]]\nname = "ATA-HRL"\nmission = "published:ATA-HRL"\n')
+    r = cli("eval", suite, "-o", tmp_path / "out", "-e", "serial", "-q")
+    assert r.exit_code == 0, r.output
+    rows, _, _ = read_published("published")
+    mine = (tmp_path / "out" / "results.csv").read_text().splitlines()
+    assert len(mine) == 5
+    for setting in ("a", "b"):
+        sel = rows.select("ATA-HRL", setting, "high")
+        first = rows.columns["score"][sel][:2]
+        got = [float(line.split(",")[5]) for line in mine[1:] if line.split(",")[1] == setting]
+        assert got == list(first), setting

@@ -5,18 +5,19 @@ A set of published rows is a folder (under ``ata/published/NAME``, or anywhere) 
 
 * ``rows.csv.gz``: the evaluation's results.csv, gzipped, without its time columns (``wall_s``,
   ``milp_solve_s``: the time a row took depends on the machine, not on the method);
-* ``manifest.json``: the ata version, the seed, and per method its component versions, the
-  digest of each component's code (``code``), the digests of the weights it read (``inputs``),
-  and per (setting, level) cell its resolved mission, its scenario ids (first, count) and the
-  *model revision* of the cell: the digest of the world the scenarios ran in (the world
-  components' code, their settings and the [mission] keys that shape the scenarios), with the
-  cell's mean time per scenario (``time_per_scenario_s``) and the machine that took it
-  (``machine``, as the evaluation's eval.json records it).
+* ``manifest.json``: the ata version, the seed, and per method its component versions and the
+  digest of each component's code (``code``), and per (setting, level) cell the digests of the
+  weights it read (``inputs``: a method may read other weights in each setting), its resolved
+  mission, its scenario ids (first, count) and the *model revision* of the cell: the digest of
+  the world the scenarios ran in (the world components' code, their settings and the [mission]
+  keys that shape the scenarios), with the cell's mean time per scenario
+  (``time_per_scenario_s``) and the machine that took it (``machine``, as the evaluation's
+  eval.json records it).
 
 `publish` writes one from an `ata eval` folder (`ata publish EVAL_DIR --out DIR`). `check_pairing`
 refuses to pair a folder of results against a set when a cell's scenarios are not among the
-set's, its model revision differs, or the code of a published method differs from the code
-installed now. `rerun_sample` reruns a sample of a set's rows and names every row that is not
+set's, its model revision differs, or the code or the cell's weights of a published method
+differ from those installed now. `rerun_sample` reruns a sample of a set's rows and names every row that is not
 identical.
 
 The reference code and weights are checked against the installed ones from each published
@@ -52,6 +53,8 @@ WORLD_KINDS = ("task_model", "human_model", "robot_model", "perturbation", "inje
 """The components whose code and settings make the world a method is scored in."""
 WORLD_MISSION_KEYS = ("setting", "humans", "robots", "tasks", "horizon_s", "epoch_s",
                       "tick_s", "uncertainty", "fatigue_variance", "event_probability")
+RESOLVED_TABLES = ("mission", "components", "references")
+"""The tables of a resolved mission that are not a component's settings."""
 DROPPED = ("wall_s", "milp_solve_s")
 """results.csv columns left out of published rows: times, which depend on the machine."""
 DEFINED_COLUMNS = ("score", "upper_bound", "reallocations")
@@ -180,8 +183,18 @@ def publish(eval_dir: str | Path, out: str | Path) -> Path:
                                        "scenarios": [ids[0], len(ids)],
                                        "model": world_digest(loads_toml(text), code),
                                        "time_per_scenario_s": round(float(np.mean(wall)), 4),
+                                       "inputs": mission_inputs(text),
                                        "mission": text}
-        methods[method] = {"code": code, "inputs": plugins.get("inputs", {}).get(method, {}),
+        # plugins.toml keeps one digest a setting per method (a method may read other weights
+        # in each setting): each must be one of its cells' files as installed now
+        recorded = plugins.get("inputs", {}).get(method, {})
+        stale = [k for k, v in recorded.items()
+                 if all(c["inputs"].get(k) != v for c in cells.values())]
+        if stale:
+            raise MissionError("", None, f"the weights {method} read ({', '.join(stale)}) "
+                               "changed since the evaluation: evaluate again, then publish",
+                               file=str(folder))
+        methods[method] = {"code": code,
                            "versions": plugins.get("methods", {}).get(method, {}),
                            "cells": cells}
     buffer = io.StringIO()
@@ -218,15 +231,22 @@ def read_published(spec: str | Path) -> tuple[Results, dict[str, Any], Path]:
     return results, manifest, folder
 
 
-def current_code(mission_text: str) -> tuple[dict[str, str], dict[str, str]]:
-    """The digests of the code installed now of the components a resolved mission names, and
-    of the files (weights) their settings name."""
+def current_code(mission_text: str) -> dict[str, str]:
+    """The digests of the code installed now of the components a resolved mission names."""
     from ata.experiment.runner import load_session
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "mission.toml"
         path.write_text(mission_text, encoding="utf-8")
         session = load_session(str(path))
-        return session.code(), session.inputs()
+        return session.code()
+
+
+def mission_inputs(mission_text: str) -> dict[str, str]:
+    """The digests of the files (weights) installed now that a resolved mission's component
+    settings name (``runner.inputs_of`` of its component tables)."""
+    from ata.experiment.runner import inputs_of
+    return inputs_of({name: table for name, table in loads_toml(mission_text).items()
+                      if isinstance(table, dict) and name not in RESOLVED_TABLES})
 
 
 def check_pairing(mine: Results, folder: str | Path, manifest: dict[str, Any],
@@ -267,20 +287,23 @@ def check_pairing(mine: Results, folder: str | Path, manifest: dict[str, Any],
                                    f"here; seed {info['seed']}, ids {first}..{first + count - 1}"
                                    " there (ata eval runs the held-out ids; give the same "
                                    "--seed)", file=str(folder))
+            weights = mission_inputs(info["mission"])
+            other = [k for k, v in info.get("inputs", {}).items() if weights.get(k) != v]
+            if other:
+                raise MissionError("", None, f"the published rows of {name} ({setting}, "
+                                   f"{level}) were made with other weights than are installed "
+                                   f"now ({', '.join(other)}: "
+                                   + "; ".join(f"{info['inputs'][k]} there, {weights.get(k)} "
+                                               "here" for k in other)
+                                   + "): evaluate it again (ata eval) and compare with that "
+                                   "folder")
     for name in methods:
         entry = published.get(name, {})
         text = next(iter(entry.get("cells", {}).values()), {}).get("mission")
         if text is None:
             continue
-        now, weights = current_code(text)
+        now = current_code(text)
         changed = [k for k, v in entry.get("code", {}).items() if now.get(k) not in (None, v)]
-        other = [k for k, v in entry.get("inputs", {}).items() if weights.get(k) != v]
-        if other:
-            raise MissionError("", None, f"the published rows of {name} were made with other "
-                               f"weights than are installed now ({', '.join(other)}: "
-                               + "; ".join(f"{entry['inputs'][k]} there, {weights.get(k)} here"
-                                           for k in other)
-                               + "): evaluate it again (ata eval) and compare with that folder")
         if changed:
             raise MissionError("", None, f"the published rows of {name} were made with other "
                                f"code than is installed now, of {', '.join(changed)} ("
@@ -407,7 +430,7 @@ def published_session(source: str, overrides: list[str]) -> Any:
                            "published seed and at most its scenarios")
     code, weights = session.code(), session.inputs()
     changed = [k for k, v in entry.get("code", {}).items() if code.get(k) not in (None, v)]
-    changed += [k for k, v in entry.get("inputs", {}).items() if weights.get(k) != v]
+    changed += [k for k, v in info.get("inputs", {}).items() if weights.get(k) != v]
     if changed:
         raise MissionError("", None, f"the published rows of {method} were made with other code "
                            f"or weights than are installed now ({', '.join(changed)}): "

@@ -71,17 +71,23 @@ class Session:
         """'component.setting' -> content digest of every file a component setting names (a
         checkpoint, ``builtin:NAME`` or a path): the plan keys hold them, so results made with
         one set of weights are never resumed with another under the same name."""
-        out = {}
-        for comp, settings in self.mission.component_settings.items():
-            if settings is None or not dataclasses.is_dataclass(settings):
-                continue
-            for f in dataclasses.fields(settings):
-                value = getattr(settings, f.name)
-                if isinstance(value, str) and value:
-                    digest = file_digest(value)
-                    if digest is not None:
-                        out[f"{comp}.{f.name}"] = digest
-        return out
+        return inputs_of({comp: {f.name: getattr(settings, f.name)
+                                 for f in dataclasses.fields(settings)}
+                          for comp, settings in self.mission.component_settings.items()
+                          if settings is not None and dataclasses.is_dataclass(settings)})
+
+
+def inputs_of(tables: dict[str, dict[str, Any]]) -> dict[str, str]:
+    """'component.setting' -> content digest of every file a setting value of `tables`
+    (component -> its settings as values) names: `Session.inputs`, or a resolved mission's
+    component tables read back."""
+    out = {}
+    for comp, table in tables.items():
+        for name, value in table.items():
+            digest = file_digest(value) if isinstance(value, str) and value else None
+            if digest is not None:
+                out[f"{comp}.{name}"] = digest
+    return out
 
 
 def mission_file(spec: str | Path | None) -> str:
