@@ -38,7 +38,8 @@ class HumanLoad:
         self.cum = self.util_now[..., None] * ramp
         # constant over the plan, and what changes only when work is booked (the fatigue
         # projections, read at every candidate of every step), computed once in between
-        self._eta_lam = (start.eta * start.lam)[:, None, :]
+        self.eta_lam = start.eta * start.lam
+        self._eta_lam = self.eta_lam[:, None, :]
         self._fatigue: np.ndarray | None = None
         self._fatigue_greedy: np.ndarray | None = None
 
@@ -48,6 +49,14 @@ class HumanLoad:
         if self._fatigue is None:
             self._fatigue = self.start.belief.at(self.start.hours + self.booked / 3600.0)
         return self._fatigue
+
+    def fatigue_greedy(self) -> np.ndarray:
+        """F_f of every human (E, H) as the greedy planner projects it: the belief at the
+        working hours now plus the time until the human is free."""
+        if self._fatigue_greedy is None:
+            self._fatigue_greedy = self.start.belief.ahead(self.start.hours, self.free,
+                                                           self.start.now)
+        return self._fatigue_greedy
 
     def _cum_at(self, t: np.ndarray, base: np.ndarray) -> np.ndarray:
         """Cumulative busy seconds of every human by times t (E, N, H) (linear within a bin);
@@ -85,16 +94,12 @@ class HumanLoad:
         F_w None, F_f the belief at the working hours now plus the time until the human is
         free). `rows` (E,): the plan of each row of q, d and arrive, for a caller that asks
         about some (plan, POI) pairs only (default: row i is plan i)."""
-        start = self.start
         sel = slice(None) if rows is None else rows
         begin = np.maximum(arrive[..., None], self.free[sel][:, None, :])
         finish = begin + tables.T_BAR[q, d][..., None]
         f_d = tables.F_D[q, d][..., None]
         if greedy:
-            if self._fatigue_greedy is None:
-                self._fatigue_greedy = start.belief.ahead(start.hours, self.free,
-                                                          start.now)[:, None, :]
-            f_f = self._fatigue_greedy[sel]
+            f_f = self.fatigue_greedy()[sel][:, None, :]
             f_w = u = None
             p = 0.5 + self._eta_lam[sel] * f_f * f_d
         else:
@@ -108,10 +113,11 @@ class HumanLoad:
         """The load of plans `rows` alone (a copy; the grid's edges shared)."""
         out = HumanLoad.__new__(HumanLoad)
         out.start, out.window_s, out.edges = self.start.take(rows), self.window_s, self.edges
-        for name in ("free", "booked", "fatigue_now", "util_now", "cum", "_eta_lam",
+        for name in ("free", "booked", "fatigue_now", "util_now", "cum", "eta_lam",
                      "_fatigue", "_fatigue_greedy"):
             v = getattr(self, name)
             setattr(out, name, None if v is None else v[rows])
+        out._eta_lam = out.eta_lam[:, None, :]
         return out
 
     def book(self, e: np.ndarray, h: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:

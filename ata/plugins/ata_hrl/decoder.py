@@ -12,11 +12,15 @@ Everything the decoder computes comes from what a policy may read: the inherent 
 the (reconstructed) observed state S and the model's tables, in expectation. For each candidate
 it gives the network features (times, image quality, success probability with fatigue and
 workload projected to the moment the work would start, expected points) and the score of the
-greedy heuristic as a prior (greedy's own scorer, `ata.model.greedy_score`: the rate of points
-per robot second, the net value of a classifier), so that the network with its learned part
-switched off decodes like greedy. The humans' projected load is the domain library's
-(`ata.model.load.HumanLoad`); the capture time and the fatigue floor are the plan start's (what
-the team models published).
+greedy heuristic as a prior (greedy's own scorer, `ata.model.greedy_score`, in its compiled
+scalar form `ata.model.scalar`: the rate of points per robot second, the net value of a
+classifier), so that the network with its learned part switched off decodes like greedy. The
+humans' projected load is the domain library's (`ata.model.load.HumanLoad`); the capture time
+and the fatigue floor are the plan start's (what the team models published).
+
+The four steps' inputs are computed by compiled loops over the episodes (`poi_step`,
+`member_steps`), which give the bits the array formulation gave (tests/test_compiled_steps.py);
+the rest (the start, the keep step, the commits) is numpy.
 """
 
 from __future__ import annotations
@@ -26,13 +30,14 @@ import copy
 import numpy as np
 
 from ata.core.state import Allocation
-from ata.model import greedy_score, tables
-from ata.model.load import HumanLoad
+from ata.model import tables
+from ata.model.load import BIN_S, HumanLoad
 from ata.model.plan import PlanStart
 from ata.model.tables import MAX_POINTS
 from ata.plugins.ata_hrl.inputs import (CLS_FEATURES, NAV_FEATURES, POI_FEATURES,
-                                        ROBOT_FEATURES, DecodeSettings, StepInputs, _fill,
-                                        _quiet)
+                                        ROBOT_FEATURES, DecodeSettings, StepInputs)
+from ata.plugins.ata_hrl.member_steps import cls_step, nav_step, robot_step
+from ata.plugins.ata_hrl.poi_step import poi_step
 
 __all__ = ["Decoder", "DecodeSettings", "StepInputs", "POI_FEATURES", "SHORTLIST"]
 
@@ -96,6 +101,12 @@ class Decoder:
              "n_assigned", "touched", "high", "points", "tx", "ty", "prev_valid", "_ev_onboard")
     """The per-episode arrays beside the start, the load and the allocation in force."""
 
+    @property
+    def _dummy(self) -> np.ndarray:
+        """An (E, P) index array standing for the allocation in force where there is none
+        (the compiled steps take arrays, and read it only when there is one)."""
+        return self.robot
+
     def take(self, rows: np.ndarray) -> "Decoder":
         """The decoding state of episodes `rows` alone, to go on decoding those (a copy)."""
         out = copy.copy(self)
@@ -142,41 +153,6 @@ class Decoder:
     def _book(self, e: np.ndarray, h: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
         self.load.book(e, h, a, b)
 
-    def _legs_to(self, e: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Travel seconds (n, R) at autonomous speed from each robot's position to POI p of
-        plan e (each (n,)), and the autonomous arrival times."""
-        gx = self.tx[e, p][:, None] - self.robot_xy[e, :, 0]
-        gy = self.ty[e, p][:, None] - self.robot_xy[e, :, 1]
-        travel = np.sqrt(gx * gx + gy * gy) / np.maximum(self.start.speed[e], 1e-9)
-        return travel, self.robot_free[e] + travel + self.capture_s
-
-    def _greedy_net(self, q: np.ndarray, d: np.ndarray, pts: np.ndarray, arrive: np.ndarray,
-                    t_ref: np.ndarray, rows: np.ndarray | None = None
-                    ) -> tuple[np.ndarray, np.ndarray]:
-        """Greedy's net value of each human classifying an image of quality q and difficulty d
-        captured at `arrive` (each (E, N)), worth `pts`: its expected points less the price of
-        the human's time (the item, and its wait from `t_ref` (E,)); with the finish times.
-        Both (E, N, H). `rows`: the plan of each row (`HumanLoad.classification`)."""
-        p_g, fin_g, _, _, _, _ = self.load.classification(q, d, arrive, greedy=True, rows=rows)
-        free = self.human_free if rows is None else self.human_free[rows]
-        delay = np.maximum(free[:, None, :] - t_ref[:, None, None], 0.0)
-        net = greedy_score.human_net(tables.expected_points(pts[..., None], p_g),
-                                     tables.T_BAR[q, d][..., None], delay,
-                                     self.s.human_time_cost)
-        return net, fin_g
-
-    def _option_value(self, net: np.ndarray, fin: np.ndarray, onboard: np.ndarray
-                      ) -> np.ndarray:
-        """Greedy's worth of each option (E, N) (`greedy_score.option_value`): the best human
-        by net value (first on ties), or onboard."""
-        best = net.argmax(-1)
-        # the best human's entries by flat takes (cheaper than take_along_axis; ravel is a view
-        # of these freshly computed arrays)
-        at = np.arange(best.size) * net.shape[-1] + best.ravel()
-        return greedy_score.option_value(net.ravel().take(at).reshape(best.shape),
-                                         fin.ravel().take(at).reshape(best.shape),
-                                         self.horizon, onboard)
-
     # -- sub-decisions ---------------------------------------------------------------------------
     def keep_inputs(self, expected: np.ndarray, finish: np.ndarray, changed: np.ndarray,
                     heuristic: Allocation) -> StepInputs:
@@ -214,194 +190,97 @@ class Decoder:
                           np.where(heuristic_keeps, 1.0, -1.0), np.zeros((E, P))], -1)
         return StepInputs(feats.astype(np.float32), mask, prior, self.left.any(1))
 
-    @_quiet
     def poi_inputs(self) -> StepInputs:
         """Which POI next: features relative to the robot free first (the greedy robot). They
         are computed for the legal (episode, POI) pairs alone: those left that some robot
         reaches by the horizon and that greedy's prior ranks on the episode's shortlist (its
-        `SHORTLIST` best); the others' logits are masked, and their features are zero."""
-        E, P, s, e = self.E, self.P, self.s, self.e
-        free = np.where(self.robot_done, np.inf, self.robot_free)
-        r_ff = free.argmin(axis=1)
-        self.r_ff = r_ff
-        lb, lp = np.nonzero(self.left)
-        travel, arr = self._legs_to(lb, lp)                                 # (n, R)
-        reach = (arr <= self.horizon) & ~self.robot_done[lb]
-        ok = reach.any(axis=1)
-        ce, cp, travel, arr, reach = lb[ok], lp[ok], travel[ok], arr[ok], reach[ok]
-        mask = np.zeros((E, P), bool)
-        mask[ce, cp] = True
+        `SHORTLIST` best, ties included); the others' logits are masked, and their features
+        are zero. The features: the arrival of the robot free first, alone and with the first
+        free highly skilled navigator (as greedy), the expected points onboard and of the best
+        human (workload and fatigue projected to the item's start) for both, greedy's rate of
+        both, how much sooner and how much better onboard another robot gets there, the POI's
+        points, kind and difficulty, the robot's time left, the share of POIs left, and, when
+        reallocating, whether the POI's robot, validity and classifier stay. Compiled
+        (`poi_step`), one loop over the (episode, POI) pairs."""
+        E, P, s, st = self.E, self.P, self.s, self.start
         feats = np.zeros((E, P, POI_FEATURES), np.float32)
+        mask = np.zeros((E, P), bool)
         prior = np.full((E, P), -1.0)
-        if ce.size == 0:
-            return StepInputs(feats, mask, prior, mask.any(axis=1))
-        c, rf = np.arange(ce.size), r_ff[ce]
-        t_ff = self.robot_free[e, r_ff][ce]
-        arr_ff = arr[c, rf]
-        rtype = self.start.robot_type[ce, rf]
-        kind, d, pts = self.start.kind[ce, cp], self.start.diff[ce, cp], self.points[ce, cp]
-        q_auto = tables.QUALITY[rtype, kind, 1]
-        q_nav = tables.QUALITY[rtype, kind, 2]
-        ev_auto = tables.expected_points(pts, tables.P_RC[q_auto, d])
-        ev_navq = tables.expected_points(pts, tables.P_RC[q_nav, d])
-        # the first free highly skilled navigator, as greedy
-        hf = np.where(self.high, self.human_free, np.inf)
-        hn = hf.argmin(axis=1)
-        has_nav = np.isfinite(hf[e, hn])[ce]
-        depart = np.maximum(self.robot_free[e, r_ff], hf[e, hn])[ce]
-        leg_nav = travel[c, rf] / tables.SKILL_SPEED[2] + self.capture_s
-        arr_nav = np.where(has_nav, depart + leg_nav, np.inf)
-        # greedy's prior: the rate of net points per robot second, for both options at once
-        # (the last axis: autonomous, navigated)
-        arr_o = np.stack([arr_ff, arr_nav], 1)                              # (n, 2)
-        q_o = np.stack([q_auto, q_nav], 1)
-        cost = np.stack([np.zeros_like(leg_nav), s.human_time_cost * leg_nav], 1)
-        at = np.minimum(arr_o, 1e12)
-        ev_on = np.stack([ev_auto, ev_navq], 1)
-        value = self._option_value(*self._greedy_net(q_o, d[:, None], pts[:, None], at, t_ff,
-                                                     rows=ce), ev_on) - cost
-        rate = greedy_score.rate(value, arr_o - t_ff[:, None], s.rate_offset_s)
-        rates = np.where(arr_o <= self.horizon, rate, -np.inf)
-        rate_ff = np.maximum(rates[:, 0], rates[:, 1])
-        prior[ce, cp] = np.where(np.isfinite(rate_ff), rate_ff, -1.0)
-        if P > SHORTLIST:
-            # the shortlist: the legal POIs the prior ranks among the SHORTLIST best of their
-            # episode (ties included), a function of the episode's own row
-            kth = -np.partition(-prior, SHORTLIST - 1, axis=1)[:, SHORTLIST - 1]
-            sel = np.flatnonzero(prior[ce, cp] >= kth[ce])
-            if sel.size < ce.size:
-                mask[ce, cp] = False
-                (ce, cp, rf, t_ff, arr_ff, arr_nav, ev_auto, ev_navq, rates, q_o, at, arr, reach,
-                 kind, d, pts) = (x[sel] for x in (ce, cp, rf, t_ff, arr_ff, arr_nav, ev_auto,
-                                                   ev_navq, rates, q_o, at, arr, reach, kind, d,
-                                                   pts))
-                mask[ce, cp] = True
-                c = np.arange(ce.size)
-        # the learned features: the best human with workload and fatigue projected
-        p_h, fin_h, _, _, _, _ = self.load.classification(q_o, d[:, None], at, rows=ce)
-        ev_h = np.where(fin_h <= self.horizon,
-                        tables.expected_points(pts[:, None, None], p_h), -np.inf)
-        hum_best = np.maximum(ev_h.max(-1), -MAX_POINTS)
-        # competition: how much sooner, and how much better onboard, another robot gets there
-        others = reach
-        others[c, rf] = False
-        other_arr = np.where(others, arr, np.inf).min(axis=1)
-        ev_all = np.where(others, self._ev_onboard[ce, :, cp], -MAX_POINTS).max(axis=1)
-        hz = self.horizon
-        left_share = self.left.sum(1)[ce] / max(P, 1)
-        prev_feats = np.zeros((ce.size, 3))
-        if self.previous is not None:
-            prev_feats[:, 0] = self.previous.robot[ce, cp] == rf
-            prev_feats[:, 1] = self.prev_valid[ce, cp]
-            prev_feats[:, 2] = self.previous.classifier[ce, cp] >= 0
-        feats[ce, cp] = _fill(np.empty((ce.size, POI_FEATURES), np.float32), [
-            np.clip((arr_ff - self.now) / hz, 0, 2), np.clip((arr_nav - self.now) / hz, 0, 2),
-            ev_auto / MAX_POINTS, ev_navq / MAX_POINTS, hum_best[:, 0] / MAX_POINTS,
-            hum_best[:, 1] / MAX_POINTS,
-            np.clip(np.where(np.isfinite(rates[:, 0]), rates[:, 0], -0.1) * 20, -2, 2),
-            np.clip(np.where(np.isfinite(rates[:, 1]), rates[:, 1], -0.1) * 20, -2, 2),
-            np.clip((other_arr - arr_ff) / hz, -2, 2), (ev_all - ev_auto) / MAX_POINTS,
-            pts / MAX_POINTS, kind, d / 2.0, np.clip((hz - t_ff) / hz, 0, 1), left_share,
-            prev_feats])
+        self.r_ff = np.zeros(E, np.int64)
+        prev = self.previous
+        load = self.load
+        poi_step(self.left, self.robot_free, self.robot_done, self.robot_xy, st.speed,
+                 self.tx, self.ty, st.robot_type, st.kind, st.diff, self.points,
+                 self.human_free, self.high, load.fatigue_greedy(), load.fatigue_at(),
+                 load.eta_lam, load.cum.reshape(-1), load.edges.size, float(load.edges[-1]),
+                 BIN_S, self._ev_onboard, prev is not None,
+                 self._dummy if prev is None else prev.robot,
+                 self._dummy if prev is None else prev.classifier, self.prev_valid,
+                 float(self.now), float(self.horizon), float(self.capture_s), s.window_s,
+                 s.human_time_cost, s.rate_offset_s, float(tables.SKILL_SPEED[2]), SHORTLIST,
+                 MAX_POINTS, tables.QUALITY, tables.P_RC, tables.T_BAR, tables.F_D, feats,
+                 mask, prior, self.r_ff)
         return StepInputs(feats, mask, prior, mask.any(axis=1))
 
-    @_quiet
     def robot_inputs(self, p: np.ndarray) -> StepInputs:
-        """Which robot for POI p."""
-        E, R, e = self.E, self.R, self.e
-        travel_p, arr_p = self._legs_to(e, p)                               # (E, R)
-        mask = ~self.robot_done & (arr_p <= self.horizon)
-        q = tables.QUALITY[self.start.robot_type, self.start.kind[e, p][:, None], 1]
-        d = self.start.diff[e, p][:, None]
-        ev = tables.expected_points(self.points[e, p][:, None], tables.P_RC[q, d])
-        is_ff = np.arange(R)[None, :] == self.r_ff[:, None]
-        hz = self.horizon
-        prev_r = np.zeros((E, R))
-        if self.previous is not None:
-            prev_r = (np.arange(R)[None, :] == self.previous.robot[e, p][:, None]).astype(float)
-        feats = _fill(np.empty((E, R, ROBOT_FEATURES), np.float32), [
-            np.clip((arr_p - self.now) / hz, 0, 2),
-            np.clip((np.where(self.robot_done, hz, self.robot_free) - self.now) / hz, 0, 2),
-            travel_p / hz, ev / MAX_POINTS, is_ff, self.n_assigned / max(self.P, 1), prev_r,
-            self.start.robot_type, np.eye(4)[q]])
-        prior = is_ff.astype(float)
+        """Which robot for POI p: features of each robot's arrival, when it is free, its
+        travel, its expected points onboard, whether it is the robot free first (the prior),
+        its share of the POIs assigned, whether it holds the POI in the allocation in force,
+        its type and the image quality. Compiled (`member_steps.robot_step`)."""
+        E, R, st = self.E, self.R, self.start
+        feats = np.empty((E, R, ROBOT_FEATURES), np.float32)
+        mask = np.empty((E, R), bool)
+        prior = np.empty((E, R))
+        prev = self.previous
+        robot_step(p, self.robot_free, self.robot_done, self.robot_xy, st.speed, self.tx,
+                   self.ty, st.robot_type, st.kind, st.diff, self.points, self.r_ff,
+                   self.n_assigned, prev is not None, self._dummy if prev is None else prev.robot,
+                   self.P, float(self.now), float(self.horizon), float(self.capture_s),
+                   MAX_POINTS, tables.QUALITY, tables.P_RC, feats, mask, prior)
         return StepInputs(feats, mask, prior, mask.any(1))
 
-    @_quiet
     def nav_inputs(self, p: np.ndarray, r: np.ndarray) -> StepInputs:
-        """Who drives robot r to POI p: autonomous, or one highly skilled human (index h + 1)."""
-        E, H, s, e = self.E, self.H, self.s, self.e
-        tr = self._distance(e, p, r) / np.maximum(self.start.speed[e, r], 1e-9)   # (E,)
-        t_r = self.robot_free[e, r]
-        rtype = self.start.robot_type[e, r]
-        kind, d = self.start.kind[e, p], self.start.diff[e, p]
-        pts = self.points[e, p]
-        skill = np.concatenate([np.ones((E, 1), np.int64), self.start.skill], 1)  # auto: 1
-        speed_f = np.where(np.arange(H + 1)[None, :] == 0, 1.0, tables.SKILL_SPEED[skill])
-        leg = tr[:, None] / speed_f + self.capture_s
-        free = np.concatenate([t_r[:, None], np.maximum(t_r[:, None], self.human_free)], 1)
-        arrive = free + leg
-        q = tables.QUALITY[rtype[:, None], kind[:, None], skill]
-        ev_on = tables.expected_points(pts[:, None], tables.P_RC[q, d[:, None]])
-        # greedy's rate for each option (F_w = 1; the best human classifier at that quality)
-        human = np.arange(H + 1)[None, :] > 0
-        value = self._option_value(*self._greedy_net(
-            q, np.broadcast_to(d[:, None], q.shape), pts[:, None], arrive, t_r), ev_on) \
-            - np.where(human, s.human_time_cost * leg, 0.0)
-        rate = greedy_score.rate(value, arrive - t_r[:, None], s.rate_offset_s)
-        mask = np.concatenate([np.ones((E, 1), bool), self.high], 1) & (arrive <= self.horizon)
-        mask[:, 0] = True
-        hz = self.horizon
-        util = np.concatenate([np.zeros((E, 1)),
-                               self.load.utilisation_at(free[:, None, 1:])[:, 0]], 1)
-        prev_n = np.zeros((E, H + 1))
-        if self.previous is not None:
-            prev_n = (np.arange(H + 1)[None, :] == self.previous.navigator[e, p][:, None] + 1)
-        feats = _fill(np.empty((E, H + 1, NAV_FEATURES), np.float32), [
-            np.clip((arrive - self.now) / hz, 0, 2), np.clip((free - t_r[:, None]) / hz, 0, 2),
-            np.where(human, leg / hz, 0.0), ev_on / MAX_POINTS, np.clip(rate * 20, -2, 2), util,
-            prev_n, human[0], np.eye(4)[q]])
-        prior = np.where(mask, rate, -1.0)
+        """Who drives robot r to POI p: autonomous (0), or one highly skilled human (h + 1).
+        Features of each option's arrival, the wait for the navigator, the leg, the expected
+        points onboard, greedy's rate (the prior; F_w = 1, the best human classifier at that
+        quality), the navigator's utilisation, whether it navigates in the allocation in force,
+        and the image quality. Compiled (`member_steps.nav_step`)."""
+        E, H, s, st, load = self.E, self.H, self.s, self.start, self.load
+        feats = np.empty((E, H + 1, NAV_FEATURES), np.float32)
+        mask = np.empty((E, H + 1), bool)
+        prior = np.empty((E, H + 1))
+        prev = self.previous
+        nav_step(p, r, self.robot_free, self.robot_xy, st.speed, self.tx, self.ty,
+                 st.robot_type, st.kind, st.diff, self.points, st.skill, self.high,
+                 self.human_free, load.eta_lam, load.fatigue_greedy(), load.cum.reshape(-1),
+                 load.edges.size, float(load.edges[-1]), BIN_S, prev is not None,
+                 self._dummy if prev is None else prev.navigator, float(self.now),
+                 float(self.horizon), float(self.capture_s), s.window_s, s.human_time_cost,
+                 s.rate_offset_s, tables.SKILL_SPEED, MAX_POINTS, tables.QUALITY, tables.P_RC,
+                 tables.T_BAR, tables.F_D, feats, mask, prior)
         return StepInputs(feats, mask, prior, np.ones(E, bool))
 
-    @_quiet
     def cls_inputs(self, p: np.ndarray, r: np.ndarray, n: np.ndarray) -> StepInputs:
-        """Who classifies POI p's image: onboard (index 0) or a human (h + 1)."""
-        E, H, s, e = self.E, self.H, self.s, self.e
-        arrive, q = self._arrival(p, r, n)
-        d = self.start.diff[e, p]
-        pts = self.points[e, p]
-        # the navigator is busy until the capture: for it the item starts then at the earliest
-        p_h, fin, begin, u, f_w, f_f = (x[:, 0] for x in self.load.classification(
-            q[:, None], d[:, None], arrive[:, None]))
-        ev_h = np.where(fin <= self.horizon, tables.expected_points(pts[:, None], p_h), 0.0)
-        net_g, fin_g = (x[:, 0] for x in self._greedy_net(q[:, None], d[:, None], pts[:, None],
-                                                          arrive[:, None], self.robot_free[e, r]))
-        net_g = np.where(fin_g <= self.horizon, net_g, 0.0)
-        t_bar = tables.T_BAR[q, d]
-        p_on = tables.P_RC[q, d]
-        ev_on = tables.expected_points(pts, p_on)
-        hz = self.horizon
-        prev_c = np.zeros((E, H + 1))
-        rebrief = np.zeros((E, H))
-        if self.previous is not None:
-            prev_c = (np.arange(H + 1)[None, :] == self.previous.classifier[e, p][:, None] + 1)
-            moved = self.previous.classifier[e, p][:, None] != np.arange(H)[None, :]
-            rebrief = (moved & ~self.touched).astype(float) * (s.rebrief_s > 0)
-        # candidate 0 onboard, then the humans, `own` columns each; the last three: whether the
-        # candidate classifies in the allocation in force, and the image quality's first two
-        # one-hot columns
-        own = CLS_FEATURES - 3
+        """Who classifies POI p's image: onboard (0) or a human (h + 1). Features of each
+        option's expected points, success probability, finish, the wait before the item
+        starts, the human's projected utilisation, F_w and F_f at that start, the item's
+        length, greedy's net value (the prior beside onboard's expected points), whether the
+        human would be re-briefed, whether it classifies in the allocation in force, and the
+        image quality. The navigator is busy until the capture: for it the item starts then
+        at the earliest. Compiled (`member_steps.cls_step`)."""
+        E, H, s, st, load = self.E, self.H, self.s, self.start, self.load
         feats = np.empty((E, H + 1, CLS_FEATURES), np.float32)
-        _fill(feats[:, 0, :own], [ev_on / MAX_POINTS, p_on, np.clip((arrive - self.now) / hz, 0, 2),
-                                  0.0, 0.0, 1.0, 1.0, 0.0, ev_on / MAX_POINTS, 0.0, 0.0])
-        _fill(feats[:, 1:, :own], [ev_h / MAX_POINTS, p_h, np.clip((fin - self.now) / hz, 0, 2),
-                                   np.clip((begin - arrive[:, None]) / hz, 0, 2), u, f_w, f_f,
-                                   t_bar[:, None] / hz, net_g / MAX_POINTS, rebrief, 1.0])
-        _fill(feats[..., own:], [prev_c, np.eye(4)[q][:, None, :2]])
-        prior = np.concatenate([ev_on[:, None], net_g], 1)
-        mask = np.ones((E, H + 1), bool)
-        return StepInputs(feats, mask, prior, np.ones(E, bool))
+        prior = np.empty((E, H + 1))
+        prev = self.previous
+        cls_step(p, r, n, self.robot_free, self.robot_xy, st.speed, self.tx, self.ty,
+                 st.robot_type, st.kind, st.diff, self.points, st.skill, self.human_free,
+                 load.eta_lam, load.fatigue_greedy(), load.fatigue_at(), self.touched,
+                 load.cum.reshape(-1), load.edges.size, float(load.edges[-1]), BIN_S,
+                 prev is not None, self._dummy if prev is None else prev.classifier,
+                 s.rebrief_s > 0, float(self.now), float(self.horizon), float(self.capture_s),
+                 s.window_s, s.human_time_cost, tables.SKILL_SPEED, MAX_POINTS, tables.QUALITY,
+                 tables.P_RC, tables.T_BAR, tables.F_D, feats, prior)
+        return StepInputs(feats, np.ones((E, H + 1), bool), prior, np.ones(E, bool))
 
     def _distance(self, e: np.ndarray, p: np.ndarray, r: np.ndarray) -> np.ndarray:
         """Metres from robot r's projected position to POI p, in episodes e (each (n,))."""
@@ -419,12 +298,6 @@ class Decoder:
                           self.robot_free[e, r])
         q = tables.QUALITY[self.start.robot_type[e, r], self.start.kind[e, p], cls_]
         return depart, self._distance(e, p, r) / np.maximum(v, 1e-9), q
-
-    def _arrival(self, p: np.ndarray, r: np.ndarray, n: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray]:
-        """Capture time and image quality of robot r at POI p with navigator n (-1 auto)."""
-        depart, travel, q = self._route(self.e, p, r, n)
-        return depart + travel + self.capture_s, q
 
     # -- commit ----------------------------------------------------------------------------------
     def commit(self, active: np.ndarray, p: np.ndarray, r: np.ndarray, n: np.ndarray,

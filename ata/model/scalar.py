@@ -1,0 +1,71 @@
+"""The model's formulas for one value at a time, compiled with numba, for compiled loops that
+score candidates one by one (the ATA-HRL decoder's POI step). Each is the formula of its array
+twin, written in the same order of operations, so the two give the same bits
+(tests/test_scalar.py): `workload` is `ata.model.tables.workload`, `expected_points`
+`tables.expected_points`, `human_net`, `option_value` and `rate` those of
+`ata.model.greedy_score`, `cum_at` `ata.model.load.HumanLoad`'s grid read.
+
+numba caches what it compiles beside this file (``__pycache__``) or, where that is not
+writable, in its user cache; the first process to call a function compiles it (a few seconds).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+jit = numba.njit(cache=True, nogil=True)
+"""How the host compiles its loops: no Python objects, cached, no fast-math (so the same bits
+as numpy's)."""
+
+
+@jit
+def workload(u: float) -> float:
+    if u < 0.45:
+        return -2.47 * u * u + 2.22 * u + 0.5
+    if u < 0.65:
+        return 1.0
+    return -4.08 * u * u + 5.31 * u - 0.724
+
+
+@jit
+def expected_points(points: float, p_success: float) -> float:
+    return points * (2.0 * p_success - 1.0)
+
+
+@jit
+def human_net(expected: float, t_bar: float, delay: float, price: float) -> float:
+    return expected - price * (t_bar + delay)
+
+
+@jit
+def option_value(best_net: float, finish: float, horizon: float, onboard: float) -> float:
+    v = best_net if finish <= horizon else 0.0
+    return v if v >= onboard or np.isnan(v) else onboard
+
+
+@jit
+def rate(value: float, robot_s: float, offset_s: float) -> float:
+    return value / (robot_s + offset_s)
+
+
+@jit
+def cum_at(flat: np.ndarray, base: int, last_edge: float, n_edges: int, bin_s: float,
+           t: float) -> float:
+    """Cumulative busy seconds by time t on a grid of `n_edges` edges `bin_s` apart whose
+    values for one human start at flat[base] (linear within a bin)."""
+    x = min(max(t, 0.0), last_edge) / bin_s
+    k = min(int(x), n_edges - 2)
+    frac = x - k
+    lo = flat[base + k]
+    return lo + frac * (flat[base + k + 1] - lo)
+
+
+@jit
+def utilisation(flat: np.ndarray, base: int, last_edge: float, n_edges: int, bin_s: float,
+                window_s: float, t: float) -> float:
+    """Busy share of [t - window, t] from the grid (`ata.model.load.HumanLoad.utilisation_at`)."""
+    busy = (cum_at(flat, base, last_edge, n_edges, bin_s, t)
+            - cum_at(flat, base, last_edge, n_edges, bin_s, t - window_s))
+    span = min(window_s, max(t, 1e-9))
+    return min(max(busy / span, 0.0), 1.0)

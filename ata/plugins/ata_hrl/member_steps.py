@@ -1,0 +1,192 @@
+"""The decoder's member steps compiled: which robot, who navigates and who classifies, for the
+POI (and robot, navigator) each episode chose, in one loop over the episodes
+(`Decoder.robot_inputs`, `nav_inputs` and `cls_inputs` say what each feature is). The host's
+formulas (`ata.model.scalar`) in the order of operations of their array twins: the same bits as
+numpy's."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ata.model import scalar
+from ata.model.scalar import jit
+
+INF = math.inf
+
+
+@jit
+def _greedy_best(e, q, d, pts, arrive, t_ref, human_free, eta_lam, fat_greedy, t_bar, f_d,
+                 price):
+    """Greedy's best human classifier (first on ties) of an image of quality q and difficulty
+    d captured at `arrive`: its net value and finish (`Decoder._greedy_net`, then the argmax of
+    `_option_value`)."""
+    H = human_free.shape[1]
+    tb, fd = t_bar[q, d], f_d[q, d]
+    best_net, best_fin = -INF, INF
+    for h in range(H):
+        begin = max(arrive, human_free[e, h])
+        fin = begin + tb
+        ps = 0.5 + eta_lam[e, h] * fat_greedy[e, h] * fd
+        delay = max(human_free[e, h] - t_ref, 0.0)
+        net = scalar.human_net(scalar.expected_points(pts, ps), tb, delay, price)
+        if h == 0 or net > best_net or (np.isnan(net) and not np.isnan(best_net)):
+            best_net, best_fin = net, fin
+    return best_net, best_fin
+
+
+@jit
+def robot_step(p, robot_free, robot_done, robot_xy, speed, tx, ty, robot_type, kind, diff,
+               points, r_ff, n_assigned, has_prev, prev_robot, n_pois, now, horizon, capture_s,
+               max_points, quality, p_rc, feats, mask, prior):
+    """Fill feats (E, R, F), mask (E, R) and prior (E, R) of the robot step."""
+    E, R = robot_free.shape
+    for e in range(E):
+        pe = p[e]
+        k, d, pts = kind[e, pe], diff[e, pe], points[e, pe]
+        for r in range(R):
+            gx = tx[e, pe] - robot_xy[e, r, 0]
+            gy = ty[e, pe] - robot_xy[e, r, 1]
+            travel = math.sqrt(gx * gx + gy * gy) / max(speed[e, r], 1e-9)
+            arr = robot_free[e, r] + travel + capture_s
+            mask[e, r] = not robot_done[e, r] and arr <= horizon
+            q = quality[robot_type[e, r], k, 1]
+            ev = scalar.expected_points(pts, p_rc[q, d])
+            is_ff = 1.0 if r == r_ff[e] else 0.0
+            free = horizon if robot_done[e, r] else robot_free[e, r]
+            f = feats[e, r]
+            f[0] = min(max((arr - now) / horizon, 0.0), 2.0)
+            f[1] = min(max((free - now) / horizon, 0.0), 2.0)
+            f[2] = travel / horizon
+            f[3] = ev / max_points
+            f[4] = is_ff
+            f[5] = n_assigned[e, r] / max(n_pois, 1)
+            f[6] = 1.0 if has_prev and prev_robot[e, pe] == r else 0.0
+            f[7] = robot_type[e, r]
+            for j in range(4):
+                f[8 + j] = 1.0 if q == j else 0.0
+            prior[e, r] = is_ff
+
+
+@jit
+def nav_step(p, r, robot_free, robot_xy, speed, tx, ty, robot_type, kind, diff, points, skill,
+             high, human_free, eta_lam, fat_greedy, cum, n_edges, last_edge, bin_s, has_prev,
+             prev_nav, now, horizon, capture_s, window_s, price, offset_s, skill_speed,
+             max_points, quality, p_rc, t_bar, f_d, feats, mask, prior):
+    """Fill feats (E, H + 1, F), mask and prior (E, H + 1) of the navigator step: autonomous
+    (0), or human h (h + 1)."""
+    E, H = human_free.shape
+    for e in range(E):
+        pe, re = p[e], r[e]
+        gx = tx[e, pe] - robot_xy[e, re, 0]
+        gy = ty[e, pe] - robot_xy[e, re, 1]
+        tr = math.sqrt(gx * gx + gy * gy) / max(speed[e, re], 1e-9)
+        t_r = robot_free[e, re]
+        k, d, pts = kind[e, pe], diff[e, pe], points[e, pe]
+        for j in range(H + 1):
+            human = j > 0
+            sk = skill[e, j - 1] if human else 1
+            leg = tr / (skill_speed[sk] if human else 1.0) + capture_s
+            free = max(t_r, human_free[e, j - 1]) if human else t_r
+            arrive = free + leg
+            q = quality[robot_type[e, re], k, sk]
+            ev_on = scalar.expected_points(pts, p_rc[q, d])
+            best_net, best_fin = _greedy_best(e, q, d, pts, arrive, t_r, human_free, eta_lam,
+                                              fat_greedy, t_bar, f_d, price)
+            value = scalar.option_value(best_net, best_fin, horizon, ev_on) \
+                - (price * leg if human else 0.0)
+            rt = scalar.rate(value, arrive - t_r, offset_s)
+            ok = (not human or high[e, j - 1]) and arrive <= horizon
+            mask[e, j] = ok or not human
+            util = 0.0
+            if human:
+                util = scalar.utilisation(cum, (e * H + j - 1) * n_edges, last_edge, n_edges,
+                                          bin_s, window_s, free)
+            f = feats[e, j]
+            f[0] = min(max((arrive - now) / horizon, 0.0), 2.0)
+            f[1] = min(max((free - t_r) / horizon, 0.0), 2.0)
+            f[2] = leg / horizon if human else 0.0
+            f[3] = ev_on / max_points
+            f[4] = min(max(rt * 20, -2.0), 2.0)
+            f[5] = util
+            f[6] = 1.0 if has_prev and prev_nav[e, pe] + 1 == j else 0.0
+            f[7] = 1.0 if human else 0.0
+            for i in range(4):
+                f[8 + i] = 1.0 if q == i else 0.0
+            prior[e, j] = rt if mask[e, j] else -1.0
+
+
+@jit
+def cls_step(p, r, n, robot_free, robot_xy, speed, tx, ty, robot_type, kind, diff, points,
+             skill, human_free, eta_lam, fat_greedy, fat_now, touched, cum, n_edges, last_edge,
+             bin_s, has_prev, prev_cls, rebrief_on, now, horizon, capture_s, window_s, price,
+             skill_speed, max_points, quality, p_rc, t_bar, f_d, feats, prior):
+    """Fill feats (E, H + 1, F) and prior (E, H + 1) of the classifier step: onboard (0), or
+    human h (h + 1)."""
+    E, H = human_free.shape
+    for e in range(E):
+        pe, re, ne = p[e], r[e], n[e]
+        # the capture (`Decoder._arrival`)
+        cls_ = skill[e, max(ne, 0)] if ne >= 0 else 1
+        v = speed[e, re] * (skill_speed[cls_] if ne >= 0 else 1.0)
+        depart = max(robot_free[e, re], human_free[e, max(ne, 0)]) if ne >= 0 \
+            else robot_free[e, re]
+        q = quality[robot_type[e, re], kind[e, pe], cls_]
+        gx = tx[e, pe] - robot_xy[e, re, 0]
+        gy = ty[e, pe] - robot_xy[e, re, 1]
+        arrive = depart + math.sqrt(gx * gx + gy * gy) / max(v, 1e-9) + capture_s
+        d, pts = diff[e, pe], points[e, pe]
+        tb, fd = t_bar[q, d], f_d[q, d]
+        p_on = p_rc[q, d]
+        ev_on = scalar.expected_points(pts, p_on)
+        t_ref = robot_free[e, re]
+        prior[e, 0] = ev_on
+        f = feats[e, 0]
+        f[0] = ev_on / max_points
+        f[1] = p_on
+        f[2] = min(max((arrive - now) / horizon, 0.0), 2.0)
+        f[3] = 0.0
+        f[4] = 0.0
+        f[5] = 1.0
+        f[6] = 1.0
+        f[7] = 0.0
+        f[8] = ev_on / max_points
+        f[9] = 0.0
+        f[10] = 0.0
+        for h in range(H):
+            free = human_free[e, h]
+            begin = max(arrive, free)
+            fin = begin + tb
+            u = scalar.utilisation(cum, (e * H + h) * n_edges, last_edge, n_edges, bin_s,
+                                   window_s, begin)
+            f_w = scalar.workload(u)
+            f_f = fat_now[e, h]
+            ps = 0.5 + eta_lam[e, h] * f_f * f_w * fd
+            ev_h = scalar.expected_points(pts, ps) if fin <= horizon else 0.0
+            # greedy's net value of this human (F_w = 1, the fatigue at the free time)
+            pg = 0.5 + eta_lam[e, h] * fat_greedy[e, h] * fd
+            net = scalar.human_net(scalar.expected_points(pts, pg), tb,
+                                   max(free - t_ref, 0.0), price)
+            net = net if fin <= horizon else 0.0
+            rebrief = 0.0
+            if has_prev and rebrief_on and prev_cls[e, pe] != h and not touched[e, h]:
+                rebrief = 1.0
+            prior[e, h + 1] = net
+            f = feats[e, h + 1]
+            f[0] = ev_h / max_points
+            f[1] = ps
+            f[2] = min(max((fin - now) / horizon, 0.0), 2.0)
+            f[3] = min(max((begin - arrive) / horizon, 0.0), 2.0)
+            f[4] = u
+            f[5] = f_w
+            f[6] = f_f
+            f[7] = tb / horizon
+            f[8] = net / max_points
+            f[9] = rebrief
+            f[10] = 1.0
+        for j in range(H + 1):
+            f = feats[e, j]
+            f[11] = 1.0 if has_prev and prev_cls[e, pe] + 1 == j else 0.0
+            f[12] = 1.0 if q == 0 else 0.0
+            f[13] = 1.0 if q == 1 else 0.0
