@@ -71,3 +71,36 @@ def test_the_compiled_steps_give_the_array_steps_bits(monkeypatch, overrides, n)
     rec = Simulation(s.mission, s.registry, list(range(n))).run()
     assert rec.allocations.size
     assert len(seen) == 5 and min(seen.values()) > 50, seen    # every step, also reallocating
+
+
+def test_the_compiled_projection_gives_the_array_projections_bits(monkeypatch):
+    # every projection of real runs, computed both ways: ATA-HRL's (the population line) and
+    # greedy's keep-or-repair reallocation with the filter's belief (a posterior over a grid
+    # of fatigue curves), both settings
+    import plan_reference
+    from ata.model import plan as plan_module
+    compiled = plan_module.project
+    calls = {"curves": set(), "n": 0}
+
+    def both(start, alloc, tasks=None, **kw):
+        new, old = compiled(start, alloc, tasks, **kw), plan_reference.project(start, alloc,
+                                                                               tasks, **kw)
+        for field in ("value", "human_busy_s", "expected", "arrival", "finish", "robot_free",
+                      "robot_xy", "human_free"):
+            assert np.array_equal(getattr(new, field), getattr(old, field)), field
+        calls["n"] += 1
+        calls["curves"].add(start.belief.curves)
+        return new
+
+    for module in ("ata.model.plan", "ata.model.retask", "ata.model.greedy_planner",
+                   "ata.plugins.ata_hrl.components", "ata.plugins.ata_hrl.status"):
+        mod = __import__(module, fromlist=["project"])
+        monkeypatch.setattr(mod, "project", both)
+    root = Path(ata.__file__).parent / "missions"
+    for mission, overrides, n in ((root / "default.toml", ["mission.uncertainty='high'"], 4),
+                                  (root / "greedy.toml", ["mission.setting='b'",
+                                                            "components.reconstructors=['filter']"],
+                                   4)):
+        s = load_session(str(mission), overrides)
+        Simulation(s.mission, s.registry, list(range(n))).run()
+    assert calls["n"] > 20 and 1 in calls["curves"] and max(calls["curves"]) > 1, calls

@@ -24,6 +24,7 @@ import numpy as np
 from ata.core.state import Allocation, DecisionContext, EntityTable, Observation
 from ata.model import fatigue, tables
 from ata.model.fatigue import FatigueBelief
+from ata.model.plan_loop import project_loop
 from ata.model.team import CAPTURE_S, FATIGUE_FLOOR, HumanConstants, RobotConstants
 
 
@@ -224,9 +225,9 @@ def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None
     navigator, if any, is busy for the leg from when both are free; its classifier, if human,
     from the capture or when free, whichever is later. ``human_delay`` / ``robot_delay`` (B, H)
     / (B, R) seconds hold members before their first item (a re-brief, a re-plan). The
-    capture time and the fatigue belief are the start's.
+    capture time and the fatigue belief are the start's. Compiled (`ata.model.plan_loop`),
+    one loop per scenario.
     """
-    capture_s, belief = start.capture_s, start.belief
     B, P = start.points.shape
     H = start.eta.shape[1]
     left = (start.open if tasks is None else tasks & start.open).copy()
@@ -241,101 +242,20 @@ def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None
     expected = np.zeros((B, P))
     arrival = np.full((B, P), np.inf)
     finish = np.full((B, P), np.inf)
-    owner = alloc.robot
-    left &= np.isfinite(np.take_along_axis(robot_free, owner, axis=1))
-    b_all = np.arange(B)
-    R = robot_free.shape[1]
-    count, mine = _robot_lists(left, owner, R)
-    mine_left = mine >= 0
-    np.maximum(mine, 0, out=mine)
-    mine += (np.arange(B) * P).repeat(R)[:, None]                       # flat: b P + p
-    task_x, task_y = start.task_xy[..., 0].ravel(), start.task_xy[..., 1].ravel()
-    # read through flat indices (b P + p, b R + r: 1-D takes are far cheaper than 2-D indexing)
-    speed, quality = _per_poi(start, alloc)
-    navigator, classifier = alloc.navigator.ravel(), alloc.classifier.ravel()
-    difficulty, points = start.diff.ravel(), start.points.ravel()
-    robot_free_at, rx_at, ry_at = robot_free.ravel(), rx.ravel(), ry.ravel()    # views
-    expected_at, arrival_at, finish_at = expected.ravel(), arrival.ravel(), finish.ravel()
-    for _ in range(P):
-        has = count > 0
-        if not has.any():
-            break
-        free = np.where(has, robot_free, np.inf)
-        rs = free.argmin(axis=1)
-        act = has.any(axis=1)
-        b, rr = b_all[act], rs[act]
-        br = b * R + rr
-        cand = mine[br]                                                      # (A, K)
-        gap_x = task_x[cand] - rx_at[br][:, None]
-        gap_y = task_y[cand] - ry_at[br][:, None]
-        dist = np.where(mine_left[br], np.hypot(gap_x, gap_y), np.inf)
-        k = dist.argmin(axis=1)
-        a_all = np.arange(b.size)
-        bp, d = cand[a_all, k], dist[a_all, k]
-        nav = navigator[bp]
-        navigated = nav >= 0
-        nav_h = np.maximum(nav, 0)
-        leg = d / np.maximum(speed[bp], 1e-9) + capture_s
-        depart = np.where(navigated, np.maximum(robot_free_at[br], human_free[b, nav_h]),
-                          robot_free_at[br])
-        arr = depart + leg
-        in_time = arr <= start.horizon
-        # a navigator is booked for the leg only if it can start it in time
-        nb = navigated & (depart < start.horizon)
-        human_free[b[nb], nav_h[nb]] = arr[nb]
-        busy[b[nb], nav_h[nb]] += leg[nb]
-        q, dd, cls = quality[bp], difficulty[bp], classifier[bp]
-        by_human = (cls >= 0) & in_time
-        ch = np.maximum(cls, 0)
-        begin = np.maximum(arr, human_free[b, ch])
-        t_bar = tables.T_BAR[q, dd]
-        done = np.where(by_human, begin + t_bar, arr)
-        # fatigue at the start: the belief at the working hours now, plus the human busy
-        # until then; read for the POIs a human classifies alone (elementwise: the same
-        # numbers), the others' success the robot's own
-        p_ok = tables.P_RC[q, dd]
-        hc = np.nonzero(cls >= 0)[0]
-        if hc.size:
-            kb, kh = b[hc], ch[hc]
-            f_f = belief.ahead(start.hours[kb, kh], human_free[kb, kh], start.now, rows=(kb, kh))
-            p_ok[hc] = (0.5 + start.eta[kb, kh] * f_f * start.lam[kb, kh]
-                        * tables.F_D[q[hc], dd[hc]])
-        counted = in_time & (done <= start.horizon)
-        expected_at[bp] = np.where(counted, tables.expected_points(points[bp], p_ok), 0.0)
-        arrival_at[bp] = np.where(in_time, arr, np.inf)
-        finish_at[bp] = np.where(counted, done, np.inf)
-        hb = by_human & (begin < start.horizon)
-        human_free[b[hb], ch[hb]] = done[hb]
-        busy[b[hb], ch[hb]] += t_bar[hb]
-        robot_free_at[br] = np.where(in_time, arr, np.inf)
-        rx_at[br], ry_at[br] = task_x[bp], task_y[bp]
-        mine_left[br, k] = False
-        count[b, rr] -= 1
-        # a robot whose next leg overruns the horizon is done
-        mine_left[br[~in_time]] = False
-        count[b[~in_time], rr[~in_time]] = 0
+    left &= np.isfinite(np.take_along_axis(robot_free, alloc.robot, axis=1))
+    speed, quality = (x.reshape(B, P) for x in _per_poi(start, alloc))
+    belief = start.belief
+    project_loop(left, alloc.robot, robot_free, rx, ry, human_free,
+                 np.ascontiguousarray(start.task_xy[..., 0]),
+                 np.ascontiguousarray(start.task_xy[..., 1]), speed, quality, alloc.navigator,
+                 alloc.classifier, start.diff, start.points, start.hours, start.eta, start.lam,
+                 belief.onset, belief.slope, belief.weight, belief.offset, float(belief.floor),
+                 float(start.now), float(start.horizon), float(start.capture_s), tables.P_RC,
+                 tables.T_BAR, tables.F_D, busy, expected, arrival, finish)
     return Projection(value=expected.sum(axis=1), human_busy_s=busy.sum(axis=1),
                       expected=expected, arrival=arrival, finish=finish,
                       robot_free=robot_free, robot_xy=np.stack([rx, ry], axis=-1),
                       human_free=human_free)
-
-
-def _robot_lists(left: np.ndarray, owner: np.ndarray, R: int) -> tuple[np.ndarray, np.ndarray]:
-    """The POIs left per robot (B, R), and each robot's list of them in POI order, padded with
-    -1 (B R, K), K the most any robot has: a projection step measures the chosen robot's
-    distance to these only, and argmin keeps POI order, so ties go to the same POI as over
-    all P."""
-    B = left.shape[0]
-    lb, lp = np.nonzero(left)                                  # by scenario, then POI order
-    lr = owner[lb, lp]
-    count = np.zeros((B, R), dtype=np.int64)
-    np.add.at(count, (lb, lr), 1)
-    key = lb * R + lr
-    by_robot = np.argsort(key, kind="stable")
-    slot = np.arange(lb.size) - (np.cumsum(count.ravel()) - count.ravel())[key[by_robot]]
-    mine = np.full((B * R, max(int(count.max()) if count.size else 0, 1)), -1, dtype=np.int64)
-    mine[key[by_robot], slot] = lp[by_robot]
-    return count, mine
 
 
 def _per_poi(start: PlanStart, alloc: Allocation) -> tuple[np.ndarray, np.ndarray]:

@@ -37,7 +37,15 @@ def poi_step(left, robot_free, robot_done, robot_xy, speed, tx, ty, robot_type, 
     cost = np.empty(2)
     hum = np.empty(2)
     row = np.empty(P)
+    # greedy's best human for an image of quality q and difficulty d does not depend on when
+    # the image comes (only its finish does): per episode, the first POI of each (q, d) finds
+    # it, the others read it
+    n_q, n_d = t_bar.shape
+    memo_pts = np.empty((n_q, n_d))
+    memo_h = np.empty((n_q, n_d), np.int64)
+    memo_net = np.empty((n_q, n_d))
     for e in range(E):
+        memo_pts[:] = np.nan
         # the robot free first (greedy's), and the first free highly skilled navigator
         rf = 0
         best = INF
@@ -74,8 +82,13 @@ def poi_step(left, robot_free, robot_done, robot_xy, speed, tx, ty, robot_type, 
                 if stage == 1 and (not mask[e, p] or prior[e, p] < kth):
                     mask[e, p] = False
                     continue
+                # the legs: every robot's on the shortlist (the competition features), else
+                # the robot free first's and, if it cannot reach the POI, any other's that can
                 ok = False
-                for r in range(R):
+                for i in range(R + 1):
+                    r = rf if i == 0 else i - 1
+                    if i > 0 and (r == rf or (stage == 0 and ok)):
+                        continue
                     gx = tx[e, p] - robot_xy[e, r, 0]
                     gy = ty[e, p] - robot_xy[e, r, 1]
                     travel[r] = math.sqrt(gx * gx + gy * gy) / max(speed[e, r], 1e-9)
@@ -100,17 +113,19 @@ def poi_step(left, robot_free, robot_done, robot_xy, speed, tx, ty, robot_type, 
                     at = min(arr_o[o], 1e12)
                     q = q_o[o]
                     tb, fd = t_bar[q, d], f_d[q, d]
-                    best_net, best_fin = -INF, INF
-                    for h in range(H):
-                        begin = max(at, human_free[e, h])
-                        fin = begin + tb
-                        ps = 0.5 + eta_lam[e, h] * fat_greedy[e, h] * fd
-                        delay = max(human_free[e, h] - t_ff, 0.0)
-                        net = scalar.human_net(scalar.expected_points(pts, ps), tb, delay,
-                                               price)
-                        if h == 0 or net > best_net or (np.isnan(net)
-                                                         and not np.isnan(best_net)):
-                            best_net, best_fin = net, fin
+                    if memo_pts[q, d] != pts:
+                        best_net, best_h = -INF, 0
+                        for h in range(H):
+                            ps = 0.5 + eta_lam[e, h] * fat_greedy[e, h] * fd
+                            delay = max(human_free[e, h] - t_ff, 0.0)
+                            net = scalar.human_net(scalar.expected_points(pts, ps), tb, delay,
+                                                   price)
+                            if h == 0 or net > best_net or (np.isnan(net)
+                                                             and not np.isnan(best_net)):
+                                best_net, best_h = net, h
+                        memo_pts[q, d], memo_h[q, d], memo_net[q, d] = pts, best_h, best_net
+                    best_net = memo_net[q, d]
+                    best_fin = max(at, human_free[e, memo_h[q, d]]) + tb
                     value = scalar.option_value(best_net, best_fin, horizon,
                                                 ev_on[o]) - cost[o]
                     rt = scalar.rate(value, arr_o[o] - t_ff, offset_s)
