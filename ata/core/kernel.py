@@ -19,6 +19,7 @@ from ata.core.errors import ContractError, MissionError
 from ata.core.mission import SLOT_HOOKS, SLOT_KINDS, Mission
 from ata.core.registry import Register
 from ata.core.rng import BatchRNG, decision_rng
+from ata.core.settings import for_team
 from ata.core.state import (Allocation, DecisionContext, DecisionView, EpisodeOutcome,
                             EpisodeRecord, Observation, SimState, read_only)
 
@@ -52,8 +53,7 @@ def build_component(registry: Register, mission: Mission, kind: str, name: str) 
     settings = mission.component_settings.get(name)
     if settings is None and getattr(info.factory, "Settings", None) is not None:
         settings = info.factory.Settings()
-        fit = getattr(settings, "for_team", None)       # as `validate` does for chosen ones
-        settings = fit(mission.settings) if callable(fit) else settings
+        settings = for_team(settings, mission.settings)   # as `validate` does for chosen ones
     component = info.factory(settings, mission)
     try:
         component.component_name = name

@@ -20,7 +20,7 @@ from ata.core import references as refs_mod
 from ata.core.errors import MissionError
 from ata.core.registry import Register
 from ata.core.seeds import SECRET_SEED_MIN, seed_hash, secret_seed  # noqa: F401
-from ata.core.settings import build_settings, param, settings_dict
+from ata.core.settings import build_settings, for_team, param, settings_dict
 from ata.core.state import Clock, TeamSize
 
 TEAM_SETTINGS = {"a": TeamSize(humans=6, robots=8, tasks=60),
@@ -446,8 +446,7 @@ def _validate(raw: dict[str, Any], registry: Register, source: str) -> Mission:
             built = build_settings(cls, table, f"[{name}]")
             # settings that depend on the team (a family of shipped weights, the member that
             # suits its size): the resolved mission records what they resolve to
-            fit = getattr(built, "for_team", None)
-            component_settings[name] = fit(settings) if callable(fit) else built
+            component_settings[name] = for_team(built, settings)
     # the optional plugins loaded because a component was named: the resolved mission then
     # names every plugin it needs (worker processes load them up front from it)
     settings.plugins = list(dict.fromkeys([*settings.plugins, *registry.loaded]))

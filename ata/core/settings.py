@@ -110,6 +110,15 @@ def allowed_text(meta: dict) -> str:
     return ""
 
 
+def for_team(settings: Any, team: Any) -> Any:
+    """`settings` fitted to the mission's team (`MissionSettings`): its class's optional
+    ``for_team(team)`` (a family of shipped weights becomes the member that suits the team's
+    size, say), else `settings` as they are. Validation applies it to the settings a mission
+    names, the kernel to a component's defaults."""
+    fit = getattr(settings, "for_team", None)
+    return fit(team) if callable(fit) else settings
+
+
 def build_settings(cls: type, table: dict[str, Any] | None, where: str) -> Any:
     """Validate a TOML table against a settings dataclass and return the filled instance.
 

@@ -96,11 +96,21 @@ WEIGHTS_FAMILY = "builtin:ata_hrl"
 suits the mission's team (``ata.training.weights_for``)."""
 
 
+class TeamWeights:
+    """A settings class whose ``checkpoint`` may name a family of weights: for a mission's team
+    it becomes the member that suits the team's size (``ata.core.settings.for_team``)."""
+
+    checkpoint: str
+
+    def for_team(self, team: Any) -> Any:
+        return replace(self, checkpoint=weights_for(self.checkpoint, team))
+
+
 class LearnedComponent:
     """Settings, the network and the way of deciding, shared by the ITA and CTR components."""
 
     @dataclass
-    class Settings:
+    class Settings(TeamWeights):
         checkpoint: str = param(WEIGHTS_FAMILY, help="trained weights: a path, builtin:NAME, "
                                 "or a family (builtin:ata_hrl: the shipped member that suits "
                                 "the team's size)")
@@ -108,10 +118,6 @@ class LearnedComponent:
                              "stream) instead of taking the mode")
         learned: bool = param(True, help="false: decide by the greedy prior alone (the learned "
                               "part switched off)")
-
-        def for_team(self, team: Any) -> Any:
-            """The settings for the mission's team: a family of weights becomes its member."""
-            return replace(self, checkpoint=weights_for(self.checkpoint, team))
 
     def __init__(self, settings: "LearnedComponent.Settings", mission: Any,
                  net: ATAHRLNet | None = None):
@@ -379,7 +385,7 @@ class AuxReconstructor:
     leaves the raw state (the w/o.AUX ablation)."""
 
     @dataclass
-    class Settings:
+    class Settings(TeamWeights):
         checkpoint: str = param(WEIGHTS_FAMILY, help="trained weights: a path, builtin:NAME, "
                                 "or a family (builtin:ata_hrl: the shipped member that suits "
                                 "the team's size)")
@@ -389,10 +395,6 @@ class AuxReconstructor:
                                  "(status: only with a checkpoint that has a status head)")
         guesses: list[str] = param(["captured", "committed"], choices=("captured", "committed"),
                                    help="which of the status head's guesses reach the policies")
-
-        def for_team(self, team: Any) -> Any:
-            """The settings for the mission's team: a family of weights becomes its member."""
-            return replace(self, checkpoint=weights_for(self.checkpoint, team))
 
     def __init__(self, settings: "AuxReconstructor.Settings", mission: Any,
                  net: ATAHRLNet | None = None, guess: bool = True):
