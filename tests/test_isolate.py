@@ -72,6 +72,7 @@ def test_isolated_greedy_gives_the_in_process_results():
 
 
 @needs_sandbox
+@pytest.mark.slow        # about a minute: the sandboxed process compiles numba's loops itself
 def test_isolated_ata_hrl_gives_the_in_process_results(tmp_path, monkeypatch):
     # its weights named by a relative path through a link: the sandbox shows the file there
     (tmp_path / "weights").mkdir()
