@@ -10,6 +10,7 @@ import numpy as np
 import torch
 
 from ata.core.state import Allocation
+from ata.plugins.ata_hrl import scorer_loop
 from ata.plugins.ata_hrl.decoder import Decoder
 from ata.plugins.ata_hrl.inputs import StepInputs
 from ata.plugins.ata_hrl.network import KINDS, AllocationNet, step_context
@@ -19,7 +20,8 @@ Chooser = Callable[[str, torch.Tensor], np.ndarray]
 
 
 def argmax_chooser(kind: str, logits: torch.Tensor) -> np.ndarray:
-    return logits.argmax(-1).numpy()
+    # numpy's argmax, as torch's the first of equal maxima, without torch's per-call cost
+    return logits.detach().numpy().argmax(-1)
 
 
 def torch_sampler(generator: torch.Generator) -> Chooser:
@@ -90,12 +92,6 @@ def _clean(inp: StepInputs) -> StepInputs:
                       inp.active)
 
 
-def _tensors(inp: StepInputs, mask: np.ndarray) -> tuple[torch.Tensor, ...]:
-    # the float32 cast in numpy rounds as torch's would: the same tensor, one torch call less
-    return (torch.from_numpy(inp.features), torch.from_numpy(inp.prior.astype(np.float32)),
-            torch.from_numpy(mask))
-
-
 SHRINK = 0.75
 """A decode without a trace goes on with the episodes still deciding once at most this share
 of its working set is (a finished episode's choices are masked: dropping it changes none)."""
@@ -121,7 +117,7 @@ def decode(dec: Decoder, net: AllocationNet, emb: dict[str, torch.Tensor], choos
                 keep = np.flatnonzero(active)
                 dec.put(root, rows_in_root)
                 dec, rows_in_root = dec.take(keep), rows_in_root[keep]
-                steps = steps.take(torch.from_numpy(keep))
+                steps = steps.take(keep)
                 pi = dec.poi_inputs()
                 active = pi.active
             p = steps.pick("poi", pi, active, dec.r_ff, None)
@@ -138,78 +134,57 @@ def decode(dec: Decoder, net: AllocationNet, emb: dict[str, torch.Tensor], choos
 
 
 class _Steps:
-    """The network's side of a decode: the candidates' tokens, projected once, and the choice
-    of each sub-decision from its inputs."""
+    """The network's side of a decode: the tokens and the candidates' projections, as arrays
+    made once per decode, and the choice of each sub-decision from its inputs, its logits by the
+    compiled scorer (`scorer_loop`)."""
 
     def __init__(self, net: AllocationNet, emb: dict[str, torch.Tensor], choose: Chooser,
                  residual: bool, trace: DecodeTrace | None):
-        self.net, self.emb, self.choose = net, emb, choose
-        self.residual, self.trace = residual, trace
-        E = emb["tasks"].shape[0]
+        self.choose, self.residual, self.trace = choose, residual, trace
+        self.weights = {k: scorer_loop.weights(net.scorers[k]) for k in KINDS}
+        self.tokens = {g: _array(emb[g]) for g in ("tasks", "robots")}
+        E = self.tokens["tasks"].shape[0]
         self.zeros = np.zeros(E, np.int64)
-        self.cands = {k: net.candidates(k, emb) for k in KINDS}
         # the candidates are the same at every step: their projection once per decode
-        self.cand_hidden = {k: net.scorers[k].cand(self.cands[k]) if residual else None
-                            for k in KINDS}
-        # the context tokens as flat (E N, d) rows, read by index_select (far cheaper per call
-        # than indexing (E, N, d) by two index tensors; the same rows)
-        rows = torch.arange(E)
-        self.tokens = {g: (emb[g].reshape(E * emb[g].shape[1], -1), rows * emb[g].shape[1])
-                       for g in ("tasks", "robots")}
+        self.cand_hidden = {}
+        for k in KINDS:
+            cand = _array(net.candidates(k, emb))
+            Ek, N, d = cand.shape
+            self.cand_hidden[k] = scorer_loop.project(
+                cand.reshape(Ek * N, d), self.weights[k].cand_w).reshape(Ek, N, -1)
 
-    def take(self, rows: torch.Tensor) -> "_Steps":
+    def take(self, rows: np.ndarray) -> "_Steps":
         """The same for episodes `rows` alone."""
         out = _Steps.__new__(_Steps)
-        out.net, out.choose, out.residual, out.trace = (self.net, self.choose, self.residual,
-                                                        self.trace)
-        out.emb = {g: v.index_select(0, rows) for g, v in self.emb.items()}
-        E = rows.shape[0]
-        out.zeros = np.zeros(E, np.int64)
-        out.cands = {k: v.index_select(0, rows) for k, v in self.cands.items()}
-        out.cand_hidden = {k: None if v is None else v.index_select(0, rows)
-                           for k, v in self.cand_hidden.items()}
-        first = torch.arange(E)
-        out.tokens = {g: (out.emb[g].reshape(E * out.emb[g].shape[1], -1),
-                          first * out.emb[g].shape[1]) for g in ("tasks", "robots")}
+        out.choose, out.residual, out.trace = self.choose, self.residual, self.trace
+        out.weights = self.weights
+        out.tokens = {g: v[rows] for g, v in self.tokens.items()}
+        out.zeros = np.zeros(len(rows), np.int64)
+        out.cand_hidden = {k: v[rows] for k, v in self.cand_hidden.items()}
         return out
 
     def pick(self, kind: str, inp: StepInputs, active: np.ndarray, robot, task) -> np.ndarray:
         """The choice of sub-decision `kind` in every episode (recorded in the trace)."""
         inp = _clean(inp)
         mask = inp.mask
-        feats, prior, m = _tensors(inp, mask)
-        r = torch.from_numpy(robot if robot is not None else self.zeros)
-        t = torch.from_numpy(task if task is not None else self.zeros)
-        ctx = _context(kind, self.tokens, r, t)
-        n = m.shape[1]
-        cand, hid = self.cands[kind], self.cand_hidden[kind]
-        if n != cand.shape[1]:
-            cand, hid = cand[:, :n], None
-        # the POI step scores the legal POIs' hidden layers alone (a few of all P by the
-        # end of a decode); the other steps have few candidates
-        legal = torch.from_numpy(np.flatnonzero(mask)) if kind == "poi" and self.residual \
-            else None
-        logits = self.net.scorers[kind](feats, cand, ctx, prior, m, self.residual,
-                                        cand_hidden=hid, legal=legal)
-        choice = self.choose(kind, logits)
+        n = mask.shape[1]
+        hid = self.cand_hidden[kind]
+        if n != hid.shape[1]:
+            hid = np.ascontiguousarray(hid[:, :n])
+        logits = scorer_loop.logits(
+            kind, self.weights[kind], inp.features, inp.prior, mask, hid,
+            self.tokens["tasks"], self.tokens["robots"],
+            self.zeros if robot is None else robot, self.zeros if task is None else task,
+            self.residual)
+        choice = self.choose(kind, torch.from_numpy(logits))
         if self.trace is not None:
             self.trace.add(kind, inp, mask, choice, active, robot, task)
         return choice
 
 
-def _context(kind: str, tokens: dict[str, tuple[torch.Tensor, torch.Tensor]],
-             robot: torch.Tensor, task: torch.Tensor) -> torch.Tensor:
-    """`network.step_context` for one step's (E,) indices (never negative here), from the
-    tokens as flat (E N, d) rows with each episode's first row (E,)."""
-    def row(group: str, idx: torch.Tensor) -> torch.Tensor:
-        flat, first = tokens[group]
-        return flat.index_select(0, first + idx)
-
-    if kind == "poi":
-        return row("robots", robot)
-    if kind == "robot":
-        return row("tasks", task)
-    return row("tasks", task) + row("robots", robot)
+def _array(t: torch.Tensor) -> np.ndarray:
+    """A token tensor as a contiguous float32 array."""
+    return np.ascontiguousarray(t.detach().cpu().numpy(), dtype=np.float32)
 
 
 DECODE, KEEP, HEURISTIC = 0, 1, 2

@@ -1,0 +1,152 @@
+"""A `StepScorer`'s logits at decode time, compiled: one numba loop over the episodes and their
+legal candidates, each candidate's perceptron computed by itself (its context token, hidden
+layers, output and direct path), in float32 as the network is.
+
+Why: a decode takes thousands of sub-decisions, and torch pays some tens of microseconds for each
+of the dozen small operations a sub-decision's scorer is, whatever the rows; here a sub-decision
+is one call. And every candidate's logit is computed in one fixed order of its own, so it is the
+same whatever the batch, the other episodes or the other candidates (no matrix product that
+rounds a row by the matrix's shape).
+
+The logits are those of `network.StepScorer.forward` up to float32 rounding (the sums run in
+another order than torch's products): tests/test_scorer_loop.py holds them within 1e-4 of each
+other. Training recomputes a decode's log-probabilities with torch (`decode.trace_log_prob`),
+for their gradient.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+import torch
+
+from ata.model.scalar import jit
+from ata.plugins.ata_hrl.network import NEG, StepScorer
+
+CONTEXT = {"poi": 0, "robot": 1, "nav": 2, "cls": 2}
+"""The context token of each sub-decision (`network.step_context`): the robot's (0), the POI's
+(1), the POI's and the robot's summed (2)."""
+
+
+class ScorerWeights(NamedTuple):
+    """One scorer's parameters as float32 arrays, each matrix as (inputs, outputs)."""
+
+    feat_w: np.ndarray      # (F, h)
+    feat_b: np.ndarray      # (h,)
+    ctx_w: np.ndarray       # (d, h)
+    cand_w: np.ndarray      # (d, h)
+    hid_w: np.ndarray       # (h, h)
+    hid_b: np.ndarray       # (h,)
+    out_w: np.ndarray       # (h,)
+    out_b: np.float32
+    lin_w: np.ndarray       # (F,)
+    lin_b: np.float32
+    scale: np.float32       # exp(log_scale)
+
+
+def weights(scorer: StepScorer) -> ScorerWeights:
+    """A scorer's parameters as they are now (a decode reads them once)."""
+    def mat(layer) -> np.ndarray:
+        return np.ascontiguousarray(layer.weight.detach().cpu().numpy().T, dtype=np.float32)
+
+    def vec(t: torch.Tensor) -> np.ndarray:
+        return np.ascontiguousarray(t.detach().cpu().numpy().reshape(-1), dtype=np.float32)
+
+    out, lin = scorer.out[3], scorer.linear
+    return ScorerWeights(mat(scorer.feat), vec(scorer.feat.bias), mat(scorer.ctx),
+                         mat(scorer.cand), mat(scorer.out[1]), vec(scorer.out[1].bias),
+                         vec(out.weight), np.float32(out.bias.item()), vec(lin.weight),
+                         np.float32(lin.bias.item()), np.float32(scorer.log_scale.exp().item()))
+
+
+@jit
+def project(x, w):
+    """x (M, d) @ w (d, h), row by row: (M, h) float32."""
+    M, d = x.shape
+    h = w.shape[1]
+    out = np.zeros((M, h), np.float32)
+    for m in range(M):
+        o = out[m]
+        for i in range(d):
+            xi = x[m, i]
+            for j in range(h):
+                o[j] += xi * w[i, j]
+    return out
+
+
+@jit
+def _logits(context, feats, prior, mask, cand_h, tasks, robots, robot, task, residual,
+            feat_w, feat_b, ctx_w, hid_w, hid_b, out_w, out_b, lin_w, lin_b, scale, out):
+    E, N, F = feats.shape
+    d = tasks.shape[2]
+    h = feat_b.shape[0]
+    zero = np.float32(0.0)
+    neg = np.float32(NEG)
+    ctx = np.empty(d, np.float32)
+    ctx_h = np.empty(h, np.float32)
+    pre = np.empty(h, np.float32)
+    hid = np.empty(h, np.float32)
+    for e in range(E):
+        ctx_done = False
+        for n in range(N):
+            if not mask[e, n]:
+                out[e, n] = neg
+                continue
+            v = scale * prior[e, n]
+            if residual:
+                if not ctx_done:             # the episode's context token, projected
+                    for i in range(d):
+                        if context == 0:
+                            ctx[i] = robots[e, robot[e], i]
+                        elif context == 1:
+                            ctx[i] = tasks[e, task[e], i]
+                        else:
+                            ctx[i] = tasks[e, task[e], i] + robots[e, robot[e], i]
+                    for j in range(h):
+                        ctx_h[j] = zero
+                    for i in range(d):
+                        ci = ctx[i]
+                        for j in range(h):
+                            ctx_h[j] += ci * ctx_w[i, j]
+                    ctx_done = True
+                f = feats[e, n]
+                for j in range(h):
+                    pre[j] = feat_b[j]
+                for i in range(F):
+                    fi = f[i]
+                    for j in range(h):
+                        pre[j] += fi * feat_w[i, j]
+                for j in range(h):
+                    x = pre[j] + cand_h[e, n, j] + ctx_h[j]
+                    pre[j] = x if x > zero else zero
+                for j in range(h):
+                    hid[j] = hid_b[j]
+                for i in range(h):
+                    pi = pre[i]
+                    if pi != zero:
+                        for j in range(h):
+                            hid[j] += pi * hid_w[i, j]
+                o = out_b
+                for j in range(h):
+                    if hid[j] > zero:
+                        o += out_w[j] * hid[j]
+                lin = lin_b
+                for i in range(F):
+                    lin += lin_w[i] * f[i]
+                v = v + o + lin
+            out[e, n] = v
+
+
+def logits(kind: str, w: ScorerWeights, feats: np.ndarray, prior: np.ndarray,
+           mask: np.ndarray, cand_h: np.ndarray, tasks: np.ndarray, robots: np.ndarray,
+           robot: np.ndarray, task: np.ndarray, residual: bool) -> np.ndarray:
+    """(E, N) float32 logits of sub-decision `kind`: feats (E, N, F) float32, prior (E, N),
+    mask (E, N), cand_h (E, N, h) the candidates' tokens projected (`project` by
+    ``w.cand_w``), tasks (E, P, d) and robots (E, R, d) the tokens, robot and task (E,) the
+    context's indices; NEG where `mask` is off."""
+    out = np.empty(mask.shape, np.float32)
+    _logits(CONTEXT[kind], feats, np.ascontiguousarray(prior, dtype=np.float32), mask, cand_h,
+            tasks, robots, robot, task, residual, w.feat_w, w.feat_b, w.ctx_w, w.hid_w,
+            w.hid_b, w.out_w, w.out_b, w.lin_w, w.lin_b, w.scale, out)
+    return out
