@@ -165,7 +165,7 @@ def robot_inputs(dec, p: np.ndarray) -> StepInputs:
 def nav_inputs(dec, p: np.ndarray, r: np.ndarray) -> StepInputs:
     """Who drives robot r to POI p: autonomous, or one highly skilled human (index h + 1)."""
     E, H, s, e = dec.E, dec.H, dec.s, dec.e
-    tr = dec._distance(e, p, r) / np.maximum(dec.start.speed[e, r], 1e-9)   # (E,)
+    tr = _distance(dec, e, p, r) / np.maximum(dec.start.speed[e, r], 1e-9)   # (E,)
     t_r = dec.robot_free[e, r]
     rtype = dec.start.robot_type[e, r]
     kind, d = dec.start.kind[e, p], dec.start.diff[e, p]
@@ -240,6 +240,70 @@ def cls_inputs(dec, p: np.ndarray, r: np.ndarray, n: np.ndarray) -> StepInputs:
 def _arrival(dec, p: np.ndarray, r: np.ndarray, n: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray]:
     """Capture time and image quality of robot r at POI p with navigator n (-1 auto)."""
-    depart, travel, q = dec._route(dec.e, p, r, n)
+    depart, travel, q = _route(dec, dec.e, p, r, n)
     return depart + travel + dec.capture_s, q
 
+
+
+def _distance(dec, e: np.ndarray, p: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Metres from robot r's projected position to POI p, in episodes e (each (n,))."""
+    gx = dec.tx[e, p] - dec.robot_xy[e, r, 0]
+    gy = dec.ty[e, p] - dec.robot_xy[e, r, 1]
+    return np.sqrt(gx * gx + gy * gy)
+
+
+def _route(dec, e, p, r, n) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Robot r to POI p with navigator n (-1 auto), in episodes e: when it sets off (with
+    its navigator free), its travel seconds and the image quality."""
+    cls_ = tables.navigator_class(n[:, None], dec.start.skill[e])[:, 0]
+    v = dec.start.speed[e, r] * np.where(n >= 0, tables.SKILL_SPEED[cls_], 1.0)
+    nav_h = np.maximum(n, 0)
+    depart = np.where(n >= 0, np.maximum(dec.robot_free[e, r], dec.human_free[e, nav_h]),
+                      dec.robot_free[e, r])
+    q = tables.QUALITY[dec.start.robot_type[e, r], dec.start.kind[e, p], cls_]
+    return depart, _distance(dec, e, p, r) / np.maximum(v, 1e-9), q
+
+
+def commit(dec, active: np.ndarray, p: np.ndarray, r: np.ndarray, n: np.ndarray,
+           c: np.ndarray) -> None:
+    """`Decoder.commit` in array form."""
+    s = dec.s
+    e = dec.e[active]
+    p, r, n, c = p[active], r[active], n[active], c[active]
+    if e.size == 0:
+        return
+    if dec.previous is not None and s.rebrief_s > 0:
+        _charge(dec, e, p, n, c)
+    depart, travel, q = _route(dec, e, p, r, n)
+    leg = travel + dec.capture_s
+    arrive = depart + leg
+    depart_nav = arrive - leg
+    nb = n >= 0
+    if nb.any():
+        dec.load.book(e[nb], n[nb], depart_nav[nb], arrive[nb])
+    cb = c >= 0
+    if cb.any():
+        ce, ch = e[cb], c[cb]
+        begin = np.maximum(arrive[cb], dec.human_free[ce, ch])
+        dec.load.book(ce, ch, begin, begin + tables.T_BAR[q[cb], dec.start.diff[ce, p[cb]]])
+    dec.robot_free[e, r] = arrive
+    dec.robot_xy[e, r] = dec.start.task_xy[e, p]
+    dec.n_assigned[e, r] += 1
+    dec.robot[e, p], dec.nav[e, p], dec.cls[e, p] = r, n, c
+    dec.left[e, p] = False
+
+
+def _charge(dec, e, p, n, c) -> None:
+    """Re-brief (in the projection) every human this choice first changes the work of."""
+    prev = dec.previous
+    for old, new in ((prev.navigator[e, p], n), (prev.classifier[e, p], c)):
+        moved = old != new
+        for who in (old, new):
+            hit = moved & (who >= 0)
+            he, hh = e[hit], who[hit]
+            fresh = ~dec.touched[he, hh]
+            he, hh = he[fresh], hh[fresh]
+            if he.size:
+                a = np.maximum(dec.human_free[he, hh], dec.now)
+                dec.touched[he, hh] = True
+                dec.load.book(he, hh, a, a + dec.s.rebrief_s)

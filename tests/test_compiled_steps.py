@@ -1,10 +1,11 @@
 """The compiled pieces give numpy's bits: the host's scalar formulas against their array twins,
-and the decoder's four steps against their array form (tests/decoder_reference.py) at every
-step of real decodes: the shipped weights in settings (a) and (b) (more POIs than the
+and the decoder's four steps and its commit against their array form
+(tests/decoder_reference.py) at every step of real decodes: the shipped weights in settings (a) and (b) (more POIs than the
 shortlist), initial allocation and reallocations (an allocation in force, re-briefs)."""
 
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +39,42 @@ def test_the_scalar_formulas_give_their_array_twins_bits():
                           [scalar.rate(a, b, 30.0) for a, b in zip(ev, secs)])
 
 
+def test_the_load_formulas_give_humanload_bits():
+    # the grid's read (cum_at, utilisation) and a booking (book) against HumanLoad's arrays
+    from ata.model.load import BIN_S, HumanLoad
+    rng = np.random.default_rng(1)
+    E, H, window = 3, 4, 300.0
+    load = HumanLoad.__new__(HumanLoad)
+    load.edges = np.arange(0.0, 1500.0 + window + BIN_S, BIN_S)
+    load.window_s = window
+    load.cum = np.cumsum(rng.uniform(0, BIN_S, (E, H, load.edges.size)), -1)
+    load.booked, load.free = rng.uniform(0, 900, (E, H)), rng.uniform(0, 900, (E, H))
+    load._fatigue = load._fatigue_greedy = None
+    t = np.concatenate([rng.uniform(-50, 2000, (E, 30, H)),
+                        np.full((E, 1, H), load.edges[-1]), np.zeros((E, 1, H))], 1)
+    K, flat = load.edges.size, load.cum.reshape(-1)
+    base = load._base(None)
+    scalar_cum = [[[scalar.cum_at(flat, (e * H + h) * K, load.edges[-1], K, BIN_S, t[e, i, h])
+                    for h in range(H)] for i in range(t.shape[1])] for e in range(E)]
+    assert np.array_equal(load._cum_at(t, base), scalar_cum)
+    scalar_u = [[[scalar.utilisation(flat, (e * H + h) * K, load.edges[-1], K, BIN_S, window,
+                                     t[e, i, h]) for h in range(H)]
+                 for i in range(t.shape[1])] for e in range(E)]
+    assert np.array_equal(load.utilisation_at(t), scalar_u)
+    twin = {k: getattr(load, k).copy() for k in ("cum", "booked", "free")}
+    before = load.cum.copy()
+    e, h = np.array([0, 2, 1]), np.array([3, 0, 3])
+    a = rng.uniform(0, 1000, 3)
+    b = a + rng.uniform(0, 300, 3)
+    load.book(e, h, a, b)
+    for i in range(3):
+        scalar.book(twin["cum"], twin["booked"], twin["free"], load.edges, e[i], h[i], a[i],
+                    b[i])
+    for k, v in twin.items():
+        assert np.array_equal(getattr(load, k), v), k
+    assert (twin["cum"] > before).any() and (twin["cum"] >= before).all()    # it booked
+
+
 def _checked(monkeypatch, seen: dict) -> None:
     """Every step of every decode computed both ways, and the two compared."""
     for name in ("poi_inputs", "robot_inputs", "nav_inputs", "cls_inputs"):
@@ -60,6 +97,40 @@ def _checked(monkeypatch, seen: dict) -> None:
 
         monkeypatch.setattr(Decoder, name, both)
 
+    compiled_commit = Decoder.commit
+
+    def commit_both(dec, *args):
+        twin = _clone(dec)
+        ref.commit(twin, *args)
+        compiled_commit(dec, *args)
+        for name in _STATE:
+            assert np.array_equal(getattr(dec, name), getattr(twin, name)), ("commit", name)
+        for name in _LOAD:
+            assert np.array_equal(getattr(dec.load, name), getattr(twin.load, name)), \
+                ("commit", name)
+        assert dec.human_free is dec.load.free
+        seen["commit"] = seen.get("commit", 0) + 1
+        if dec.previous is not None and dec.touched.any():
+            seen["rebriefs"] = seen.get("rebriefs", 0) + 1
+
+    monkeypatch.setattr(Decoder, "commit", commit_both)
+
+
+_STATE = ("robot_free", "robot_xy", "n_assigned", "robot", "nav", "cls", "left", "touched")
+_LOAD = ("cum", "booked", "free")
+
+
+def _clone(dec: Decoder) -> Decoder:
+    """A copy of `dec` whose commit changes nothing of `dec`'s."""
+    twin = copy.copy(dec)
+    for name in _STATE:
+        setattr(twin, name, getattr(dec, name).copy())
+    twin.load = copy.copy(dec.load)
+    for name in _LOAD:
+        setattr(twin.load, name, getattr(dec.load, name).copy())
+    twin.human_free = twin.load.free
+    return twin
+
 
 @pytest.mark.parametrize("overrides, n", [
     (["mission.uncertainty='high'"], 3),
@@ -70,7 +141,8 @@ def test_the_compiled_steps_give_the_array_steps_bits(monkeypatch, overrides, n)
     _checked(monkeypatch, seen)
     rec = Simulation(s.mission, s.registry, list(range(n))).run()
     assert rec.allocations.size
-    assert len(seen) == 5 and min(seen.values()) > 50, seen    # every step, also reallocating
+    # every step and commit, also reallocating (with re-briefs)
+    assert len(seen) == 7 and min(seen.values()) > 50, seen
 
 
 def test_the_compiled_projection_gives_the_array_projections_bits(monkeypatch):

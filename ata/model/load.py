@@ -125,4 +125,9 @@ class HumanLoad:
         self.cum[e, h] += np.clip(self.edges[None, :] - a[:, None], 0.0, (b - a)[:, None])
         self.booked[e, h] += b - a
         self.free[e, h] = np.maximum(self.free[e, h], b)
+        self.forget()
+
+    def forget(self) -> None:
+        """Drop the fatigue projections computed from the bookings so far (after booking in
+        the load's arrays in place: `ata.model.scalar.book`)."""
         self._fatigue = self._fatigue_greedy = None

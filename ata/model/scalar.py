@@ -14,9 +14,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-jit = numba.njit(cache=True, nogil=True)
+jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 """How the host compiles its loops: no Python objects, cached, no fast-math (so the same bits
-as numpy's)."""
+as numpy's), and numpy's floating-point errors (a division by zero gives inf or nan, as in
+numpy, not Python's ZeroDivisionError)."""
 
 
 @jit
@@ -69,3 +70,16 @@ def utilisation(flat: np.ndarray, base: int, last_edge: float, n_edges: int, bin
             - cum_at(flat, base, last_edge, n_edges, bin_s, t - window_s))
     span = min(window_s, max(t, 1e-9))
     return min(max(busy / span, 0.0), 1.0)
+
+
+@jit
+def book(cum: np.ndarray, booked: np.ndarray, free: np.ndarray, edges: np.ndarray, e: int,
+         h: int, a: float, b: float) -> None:
+    """`HumanLoad.book` of one (plan, human): human h of plan e busy over [a, b), in the load's
+    arrays (cum (E, H, edges), booked and free (E, H))."""
+    span = b - a
+    row = cum[e, h]
+    for k in range(edges.shape[0]):
+        row[k] += min(max(edges[k] - a, 0.0), span)
+    booked[e, h] += span
+    free[e, h] = max(free[e, h], b)

@@ -34,6 +34,7 @@ from ata.model import tables
 from ata.model.load import BIN_S, HumanLoad
 from ata.model.plan import PlanStart
 from ata.model.tables import MAX_POINTS
+from ata.plugins.ata_hrl.commit_step import commit_step
 from ata.plugins.ata_hrl.inputs import (CLS_FEATURES, NAV_FEATURES, POI_FEATURES,
                                         ROBOT_FEATURES, DecodeSettings, StepInputs)
 from ata.plugins.ata_hrl.member_steps import cls_step, nav_step, robot_step
@@ -148,10 +149,6 @@ class Decoder:
             self.commit(act, p, rs, prev.navigator[self.e, p], prev.classifier[self.e, p])
             left[self.e[act], p[act]] = False
         self.left &= ~kept
-
-    # -- projections -----------------------------------------------------------------------------
-    def _book(self, e: np.ndarray, h: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
-        self.load.book(e, h, a, b)
 
     # -- sub-decisions ---------------------------------------------------------------------------
     def keep_inputs(self, expected: np.ndarray, finish: np.ndarray, changed: np.ndarray,
@@ -282,67 +279,28 @@ class Decoder:
                  tables.P_RC, tables.T_BAR, tables.F_D, feats, prior)
         return StepInputs(feats, np.ones((E, H + 1), bool), prior, np.ones(E, bool))
 
-    def _distance(self, e: np.ndarray, p: np.ndarray, r: np.ndarray) -> np.ndarray:
-        """Metres from robot r's projected position to POI p, in episodes e (each (n,))."""
-        gx = self.tx[e, p] - self.robot_xy[e, r, 0]
-        gy = self.ty[e, p] - self.robot_xy[e, r, 1]
-        return np.sqrt(gx * gx + gy * gy)
-
-    def _route(self, e, p, r, n) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Robot r to POI p with navigator n (-1 auto), in episodes e: when it sets off (with
-        its navigator free), its travel seconds and the image quality."""
-        cls_ = tables.navigator_class(n[:, None], self.start.skill[e])[:, 0]
-        v = self.start.speed[e, r] * np.where(n >= 0, tables.SKILL_SPEED[cls_], 1.0)
-        nav_h = np.maximum(n, 0)
-        depart = np.where(n >= 0, np.maximum(self.robot_free[e, r], self.human_free[e, nav_h]),
-                          self.robot_free[e, r])
-        q = tables.QUALITY[self.start.robot_type[e, r], self.start.kind[e, p], cls_]
-        return depart, self._distance(e, p, r) / np.maximum(v, 1e-9), q
-
     # -- commit ----------------------------------------------------------------------------------
     def commit(self, active: np.ndarray, p: np.ndarray, r: np.ndarray, n: np.ndarray,
                c: np.ndarray) -> None:
         """Give POI p (robot r, navigator n, classifier c; -1 auto / onboard) in the active
-        episodes, and update the members' projected state."""
-        s = self.s
-        e = self.e[active]
-        p, r, n, c = p[active], r[active], n[active], c[active]
-        if e.size == 0:
-            return
-        if self.previous is not None and s.rebrief_s > 0:
-            self._charge(e, p, n, c)
-        depart, travel, q = self._route(e, p, r, n)
-        leg = travel + self.capture_s
-        arrive = depart + leg
-        depart_nav = arrive - leg
-        nb = n >= 0
-        if nb.any():
-            self._book(e[nb], n[nb], depart_nav[nb], arrive[nb])
-        cb = c >= 0
-        if cb.any():
-            ce, ch = e[cb], c[cb]
-            begin = np.maximum(arrive[cb], self.human_free[ce, ch])
-            self._book(ce, ch, begin, begin + tables.T_BAR[q[cb], self.start.diff[ce, p[cb]]])
-        self.robot_free[e, r] = arrive
-        self.robot_xy[e, r] = self.start.task_xy[e, p]
-        self.n_assigned[e, r] += 1
-        self.robot[e, p], self.nav[e, p], self.cls[e, p] = r, n, c
-        self.left[e, p] = False
-
-    def _charge(self, e, p, n, c) -> None:
-        """Re-brief (in the projection) every human this choice first changes the work of."""
+        episodes, and update the members' projected state: re-brief (with an allocation in
+        force) every human whose work this choice first changes; the robot sets off when it
+        and its navigator are free, books the navigator over its leg and the classifier from
+        the capture (or from when they are free) for T_bar; the robot's free time and place
+        move to the POI's capture."""
+        s, load, st = self.s, self.load, self.start
         prev = self.previous
-        for old, new in ((prev.navigator[e, p], n), (prev.classifier[e, p], c)):
-            moved = old != new
-            for who in (old, new):
-                hit = moved & (who >= 0)
-                he, hh = e[hit], who[hit]
-                fresh = ~self.touched[he, hh]
-                he, hh = he[fresh], hh[fresh]
-                if he.size:
-                    a = np.maximum(self.human_free[he, hh], self.now)
-                    self.touched[he, hh] = True
-                    self._book(he, hh, a, a + self.s.rebrief_s)
+        charge = prev is not None and s.rebrief_s > 0
+        dummy = self._dummy
+        if commit_step(active, p, r, n, c, self.robot_free, self.robot_xy, self.n_assigned,
+                       self.robot, self.nav, self.cls, self.left, self.touched,
+                       prev.navigator if charge else dummy,
+                       prev.classifier if charge else dummy, charge, float(self.now),
+                       float(s.rebrief_s), float(self.capture_s), st.speed, st.skill,
+                       st.robot_type, st.kind, st.diff, st.task_xy, tables.SKILL_SPEED,
+                       tables.QUALITY, tables.T_BAR, load.cum, load.booked, load.free,
+                       load.edges):
+            load.forget()
 
     def finish(self) -> Allocation:
         """The allocation: POIs nobody could reach go, as greedy's leftovers do, to the robot

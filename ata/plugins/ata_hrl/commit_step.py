@@ -1,0 +1,72 @@
+"""The decoder's commit compiled: give each active episode's chosen POI its robot, navigator and
+classifier, and move the members' projected state on (`Decoder.commit` says what), one episode
+after the other. The host's booking (`ata.model.scalar.book`, `HumanLoad.book`'s formula) in the
+order of operations of the array form: the same bits as numpy's (tests/test_compiled_steps.py)."""
+
+from __future__ import annotations
+
+import math
+
+from ata.model import scalar
+from ata.model.scalar import jit
+
+
+@jit
+def _rebrief(e, h, now, rebrief_s, touched, cum, booked, free, edges):
+    """Re-brief human h of episode e, the first time this plan changes their work."""
+    if h >= 0 and not touched[e, h]:
+        a = max(free[e, h], now)
+        touched[e, h] = True
+        scalar.book(cum, booked, free, edges, e, h, a, a + rebrief_s)
+        return True
+    return False
+
+
+@jit
+def commit_step(active, p, r, n, c, robot_free, robot_xy, n_assigned, robot, nav, cls, left,
+                touched, prev_nav, prev_cls, charge, now, rebrief_s, capture_s, speed, skill,
+                robot_type, kind, diff, task_xy, skill_speed, quality, t_bar, cum, booked,
+                free, edges):
+    """Commit (p, r, n, c) in every active episode; whether anyone's work was booked."""
+    booked_any = False
+    for e in range(active.shape[0]):
+        if not active[e]:
+            continue
+        pe, re, ne, ce = p[e], r[e], n[e], c[e]
+        if charge:          # re-briefs: the navigator's change first, then the classifier's
+            old = prev_nav[e, pe]
+            if old != ne:
+                booked_any |= _rebrief(e, old, now, rebrief_s, touched, cum, booked, free,
+                                       edges)
+                booked_any |= _rebrief(e, ne, now, rebrief_s, touched, cum, booked, free,
+                                       edges)
+            old = prev_cls[e, pe]
+            if old != ce:
+                booked_any |= _rebrief(e, old, now, rebrief_s, touched, cum, booked, free,
+                                       edges)
+                booked_any |= _rebrief(e, ce, now, rebrief_s, touched, cum, booked, free,
+                                       edges)
+        # the route: when the robot sets off (its navigator free), its travel, the quality
+        nav_class = skill[e, ne] if ne >= 0 else 1
+        v = speed[e, re] * (skill_speed[nav_class] if ne >= 0 else 1.0)
+        depart = max(robot_free[e, re], free[e, ne]) if ne >= 0 else robot_free[e, re]
+        q = quality[robot_type[e, re], kind[e, pe], nav_class]
+        gx = task_xy[e, pe, 0] - robot_xy[e, re, 0]
+        gy = task_xy[e, pe, 1] - robot_xy[e, re, 1]
+        travel = math.sqrt(gx * gx + gy * gy) / max(v, 1e-9)
+        leg = travel + capture_s
+        arrive = depart + leg
+        if ne >= 0:
+            scalar.book(cum, booked, free, edges, e, ne, arrive - leg, arrive)
+            booked_any = True
+        if ce >= 0:
+            begin = max(arrive, free[e, ce])
+            scalar.book(cum, booked, free, edges, e, ce, begin, begin + t_bar[q, diff[e, pe]])
+            booked_any = True
+        robot_free[e, re] = arrive
+        robot_xy[e, re, 0] = task_xy[e, pe, 0]
+        robot_xy[e, re, 1] = task_xy[e, pe, 1]
+        n_assigned[e, re] += 1
+        robot[e, pe], nav[e, pe], cls[e, pe] = re, ne, ce
+        left[e, pe] = False
+    return booked_any
