@@ -17,23 +17,30 @@ INF = math.inf
 
 
 @jit
-def _greedy_best(e, q, d, pts, arrive, t_ref, human_free, eta_lam, fat_greedy, t_bar, f_d,
-                 price):
-    """Greedy's best human classifier (first on ties) of an image of quality q and difficulty
-    d captured at `arrive`: its net value and finish (`Decoder._greedy_net`, then the argmax of
-    `_option_value`)."""
+def greedy_human(e, q, d, pts, t_ref, human_free, eta_lam, fat_greedy, t_bar, f_d, price):
+    """Greedy's best human classifier (first on ties) of an image of quality q and difficulty d,
+    and its net value (`Decoder._greedy_net`, then the argmax of `_option_value`): the same
+    whenever the image arrives (only the human's finish depends on that)."""
     H = human_free.shape[1]
     tb, fd = t_bar[q, d], f_d[q, d]
-    best_net, best_fin = -INF, INF
+    best_net, best_h = -INF, 0
     for h in range(H):
-        begin = max(arrive, human_free[e, h])
-        fin = begin + tb
         ps = 0.5 + eta_lam[e, h] * fat_greedy[e, h] * fd
         delay = max(human_free[e, h] - t_ref, 0.0)
         net = scalar.human_net(scalar.expected_points(pts, ps), tb, delay, price)
         if h == 0 or net > best_net or (np.isnan(net) and not np.isnan(best_net)):
-            best_net, best_fin = net, fin
-    return best_net, best_fin
+            best_net, best_h = net, h
+    return best_h, best_net
+
+
+@jit
+def _greedy_best(e, q, d, pts, arrive, t_ref, human_free, eta_lam, fat_greedy, t_bar, f_d,
+                 price):
+    """Greedy's best human classifier of an image captured at `arrive`: its net value and
+    finish."""
+    h, net = greedy_human(e, q, d, pts, t_ref, human_free, eta_lam, fat_greedy, t_bar, f_d,
+                          price)
+    return net, max(arrive, human_free[e, h]) + t_bar[q, d]
 
 
 @jit

@@ -268,9 +268,11 @@ class ConditionNet(nn.Module):
         nn.init.zeros_(self.head[-1].weight)
         nn.init.zeros_(self.head[-1].bias)
         self.log_scale = nn.Parameter(torch.tensor(math.log(1.5)))
-        # made at zero without drawing from torch's generator, so that every other weight of
-        # the network starts from a seed as it would without the rule
-        self.rule = nn.Linear(COND_FEATURES, 1, device="meta").to_empty(device="cpu")
+        # made at zero, torch's generator put back as it was after its draw, so that every
+        # other weight of the network starts from a seed as it would without the rule (the
+        # CPU generator alone: nothing here draws on a GPU's)
+        with torch.random.fork_rng(devices=[]):
+            self.rule = nn.Linear(COND_FEATURES, 1)
         nn.init.zeros_(self.rule.weight)
         nn.init.zeros_(self.rule.bias)
         self.rule.register_buffer("on", torch.zeros(()))

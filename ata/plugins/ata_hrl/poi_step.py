@@ -12,6 +12,7 @@ import numpy as np
 
 from ata.model import scalar
 from ata.model.scalar import jit
+from ata.plugins.ata_hrl.member_steps import greedy_human
 
 INF = math.inf
 
@@ -112,18 +113,12 @@ def poi_step(left, robot_free, robot_done, robot_xy, speed, tx, ty, robot_type, 
                 for o in range(2):
                     at = min(arr_o[o], 1e12)
                     q = q_o[o]
-                    tb, fd = t_bar[q, d], f_d[q, d]
+                    tb = t_bar[q, d]
                     if memo_pts[q, d] != pts:
-                        best_net, best_h = -INF, 0
-                        for h in range(H):
-                            ps = 0.5 + eta_lam[e, h] * fat_greedy[e, h] * fd
-                            delay = max(human_free[e, h] - t_ff, 0.0)
-                            net = scalar.human_net(scalar.expected_points(pts, ps), tb, delay,
-                                                   price)
-                            if h == 0 or net > best_net or (np.isnan(net)
-                                                             and not np.isnan(best_net)):
-                                best_net, best_h = net, h
-                        memo_pts[q, d], memo_h[q, d], memo_net[q, d] = pts, best_h, best_net
+                        memo_h[q, d], memo_net[q, d] = greedy_human(
+                            e, q, d, pts, t_ff, human_free, eta_lam, fat_greedy, t_bar, f_d,
+                            price)
+                        memo_pts[q, d] = pts
                     best_net = memo_net[q, d]
                     best_fin = max(at, human_free[e, memo_h[q, d]]) + tb
                     value = scalar.option_value(best_net, best_fin, horizon,
