@@ -393,3 +393,33 @@ def test_a_run_under_way_keeps_a_second_one_out(cli, tmp_path):
     assert not (out / ".ata-lock").exists()
     assert not (out / "mission.resolved.toml").exists()       # the first run wrote no result
     assert json.loads((out / "plan.json").read_text())["scenarios"] == 2000
+
+
+@pytest.mark.skipif(os.name != "posix", reason="signals")
+def test_a_ctrl_c_lost_where_it_landed_still_stops_the_run(cli, tmp_path, monkeypatch):
+    # a SIGINT that lands inside a C library's callback (llvmlite's, while numba compiles a
+    # hot loop on a machine's first run) raises there and is dropped: the run must still stop,
+    # at the next epoch, saying what was saved
+    from ata.experiment import units
+    from ata.experiment.runner import BASELINE_MISSION
+    real, sent = units.run_unit, []
+
+    def lost_interrupt(unit, on_epoch=None):
+        if not sent:
+            sent.append(1)
+            try:
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(1.0)
+            except KeyboardInterrupt:
+                pass                                     # lost, as in the callback
+        return real(unit, on_epoch=on_epoch)
+
+    monkeypatch.setattr(units, "run_unit", lost_interrupt)
+    out = tmp_path / "run"
+    r = cli("run", BASELINE_MISSION, "--set", "mission.scenarios=6",
+            "--set", "mission.batch_size=3", "-o", out, "-q")
+    assert sent and r.exit_code == 130, r.output
+    assert " ".join(r.output.split()) == (
+        f"interrupted: 0 of 2 batches are saved in {out}; run the same command with --out "
+        f"{out} to go on")
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler    # put back

@@ -11,7 +11,9 @@ from __future__ import annotations
 import contextlib
 import copy
 import dataclasses
+import signal
 import sys
+import threading
 import time
 from dataclasses import dataclass
 from typing import Any, Callable, Iterator
@@ -171,16 +173,50 @@ def run_units(units: list[Unit], executor: Executor, *, log: runlog.RunLog | Non
     """
     parts, todo = runlog.parts_and_todo(log, len(units))
     t0 = time.perf_counter()
-    def with_epochs(unit: Unit) -> dict:
-        share = unit.ids.size / unit.mission.clock.n_epochs
-        return run_unit(unit, on_epoch=lambda _epoch: progress(share))
+    with _Interrupts() as interrupts:
+        def with_epochs(unit: Unit) -> dict:
+            share = unit.ids.size / unit.mission.clock.n_epochs
 
-    fn = with_epochs if progress is not None and not executor.parallel else run_unit
-    for k, out in executor.run(fn, [units[i] for i in todo]):
-        i = todo[k]
-        parts[i] = out
-        if log is not None:
-            log.add(i, out)
-        if progress is not None and executor.parallel:
-            progress(float(np.asarray(out["scenario"]).size))
+            def on_epoch(_epoch: int) -> None:
+                interrupts.check()
+                if progress is not None:
+                    progress(share)
+            return run_unit(unit, on_epoch=on_epoch)
+
+        fn = run_unit if executor.parallel else with_epochs
+        for k, out in executor.run(fn, [units[i] for i in todo]):
+            i = todo[k]
+            parts[i] = out
+            if log is not None:
+                log.add(i, out)
+            if progress is not None and executor.parallel:
+                progress(float(np.asarray(out["scenario"]).size))
+            interrupts.check()
     return parts, time.perf_counter() - t0
+
+
+class _Interrupts:
+    """Ctrl-C delivered as Python delivers it (a KeyboardInterrupt where the program is), and
+    remembered: one that is lost where it lands (inside a C library's callback, as numba's
+    compiler's while it compiles a hot loop on a machine's first run) still stops the run at
+    the next epoch or unit, after what has ended is recorded. Only Python's own handler, in
+    the main thread, is replaced (and put back)."""
+
+    def __enter__(self) -> "_Interrupts":
+        self.hit, self.previous = False, None
+        if (threading.current_thread() is threading.main_thread()
+                and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
+            self.previous = signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def _handler(self, signum, frame) -> None:
+        self.hit = True
+        raise KeyboardInterrupt
+
+    def check(self) -> None:
+        if self.hit:
+            raise KeyboardInterrupt
+
+    def __exit__(self, *exc) -> None:
+        if self.previous is not None:
+            signal.signal(signal.SIGINT, self.previous)
