@@ -1,23 +1,23 @@
 """The model's formulas for one value at a time, compiled with numba, for compiled loops that
 score candidates one by one (the ATA-HRL decoder's POI step). Each is the formula of its array
 twin, written in the same order of operations, so the two give the same bits
-(tests/test_scalar.py): `workload` is `ata.model.tables.workload`, `expected_points`
+(tests/test_compiled_steps.py): `workload` is `ata.model.tables.workload`, `expected_points`
 `tables.expected_points`, `human_net`, `option_value` and `rate` those of
-`ata.model.greedy_score`, `cum_at` `ata.model.load.HumanLoad`'s grid read.
+`ata.model.greedy_score`, `cum_at` and `utilisation` `ata.model.load.HumanLoad`'s grid read,
+`book` its booking.
 
-numba caches what it compiles beside this file (``__pycache__``) or, where that is not
-writable, in its user cache; the first process to call a function compiles it (a few seconds).
+`jit` is the host's way of compiling (`ata.model.compiling`): cached, and compiled again when
+this module changes; the first process to call a function compiles it (a few seconds).
 """
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
-jit = numba.njit(cache=True, nogil=True, error_model="numpy")
-"""How the host compiles its loops: no Python objects, cached, no fast-math (so the same bits
-as numpy's), and numpy's floating-point errors (a division by zero gives inf or nan, as in
-numpy, not Python's ZeroDivisionError)."""
+from ata.model.compiling import jit
+
+__all__ = ["jit", "workload", "expected_points", "human_net", "option_value", "rate", "cum_at",
+           "utilisation", "book"]
 
 
 @jit
