@@ -72,8 +72,9 @@ def test_isolated_greedy_gives_the_in_process_results():
 
 
 @needs_sandbox
-@pytest.mark.slow        # about a minute: the sandboxed process compiles numba's loops itself
 def test_isolated_ata_hrl_gives_the_in_process_results(tmp_path, monkeypatch):
+    # the sandboxed process reads the loops the in-process run compiled (about 10 s; about 50
+    # compiling them itself)
     # its weights named by a relative path through a link: the sandbox shows the file there
     (tmp_path / "weights").mkdir()
     shutil.copy(Path(sandbox.ata_dir()) / "weights" / "ata_hrl_a.pt", tmp_path / "weights")
@@ -259,3 +260,24 @@ def test_the_sandbox_shows_the_package_not_the_checkout():
 
 def test_contract_errors_from_the_process_are_contract_errors():
     assert issubclass(isolate.DecisionTimeout, ContractError)
+
+
+def test_the_decision_process_finds_the_hosts_compiled_loops(tmp_path):
+    # the package is read-only in the sandbox, where numba caches nothing beside it: the
+    # process copies the host's cached loops into its own numba cache, where numba loads them
+    # without compiling (NUMBA_DEBUG_CACHE says where each comes from)
+    import os
+    import subprocess
+
+    from ata.model import scalar
+    assert scalar.workload(0.5) == 1.0                  # compiled and cached by the host
+    cache = tmp_path / "numba"
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache)}
+    code = ("from ata.runtime.decider import seed_compiled_cache; seed_compiled_cache(); "
+            "from ata.model import scalar; print(scalar.workload(0.5))")
+    done = subprocess.run([sys.executable, "-c", code], env={**env, "NUMBA_DEBUG_CACHE": "1"},
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    out = done.stdout + done.stderr
+    assert "1.0" in done.stdout
+    assert f"data loaded from '{cache}" in out and "data saved to" not in out, out

@@ -17,6 +17,7 @@ import copy
 import importlib
 import os
 import pickle
+import shutil
 import sys
 import time
 import traceback
@@ -269,7 +270,41 @@ def serve(fd_in: int, fd_out: int) -> None:
             child_send(fd_out, {"error": traceback.format_exc(), "kind": "exception"})
 
 
+def seed_compiled_cache() -> None:
+    """ata's compiled loops as the host cached them beside its modules, copied into this
+    process's numba cache (``NUMBA_CACHE_DIR``, in the sandbox's own tmpfs), laid out as numba
+    looks for them there. In the sandbox the package is read-only, and numba uses no cache it
+    cannot write: without this, each decision process compiled every loop again (tens of
+    seconds a start). numba checks each copy against the sources as it checks its own cache; a
+    loop the host never compiled is compiled here. Nothing goes back to the host."""
+    target = os.environ.get("NUMBA_CACHE_DIR")
+    if not target:
+        return
+    import ata
+    try:
+        from numba.core.caching import _CacheLocator
+        subpath = _CacheLocator.get_suitable_cache_subpath
+    except (ImportError, AttributeError):
+        return
+    root = os.path.dirname(os.path.abspath(ata.__file__))
+    for folder, dirs, files in os.walk(root):
+        if os.path.basename(folder) != "__pycache__":
+            continue
+        cached = [f for f in files if f.endswith((".nbi", ".nbc"))]
+        if not cached:
+            continue
+        # numba names a module's cache folder after the module's file
+        dest = os.path.join(target, subpath(os.path.join(os.path.dirname(folder), "m.py")))
+        try:
+            os.makedirs(dest, exist_ok=True)
+            for name in cached:
+                shutil.copyfile(os.path.join(folder, name), os.path.join(dest, name))
+        except OSError:
+            return
+
+
 def main() -> None:
+    seed_compiled_cache()
     # the channel gets private descriptors; fd 1 becomes stderr, so that a component's print
     # cannot corrupt a frame
     fd_in, fd_out = os.dup(0), os.dup(1)
