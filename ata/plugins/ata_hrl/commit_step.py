@@ -12,14 +12,18 @@ from ata.model.scalar import jit
 
 
 @jit
-def _rebrief(e, h, now, rebrief_s, touched, cum, booked, free, edges):
-    """Re-brief human h of episode e, the first time this plan changes their work."""
-    if h >= 0 and not touched[e, h]:
-        a = max(free[e, h], now)
-        touched[e, h] = True
-        scalar.book(cum, booked, free, edges, e, h, a, a + rebrief_s)
-        return True
-    return False
+def _rebrief(e, old, new, now, rebrief_s, touched, cum, booked, free, edges):
+    """Where this choice changes who does a POI's work (old to new, -1 nobody), re-brief each
+    of the two the first time this plan changes their work; whether anyone was booked."""
+    hit = False
+    if old != new:
+        for h in (old, new):
+            if h >= 0 and not touched[e, h]:
+                a = max(free[e, h], now)
+                touched[e, h] = True
+                scalar.book(cum, booked, free, edges, e, h, a, a + rebrief_s)
+                hit = True
+    return hit
 
 
 @jit
@@ -34,18 +38,10 @@ def commit_step(active, p, r, n, c, robot_free, robot_xy, n_assigned, robot, nav
             continue
         pe, re, ne, ce = p[e], r[e], n[e], c[e]
         if charge:          # re-briefs: the navigator's change first, then the classifier's
-            old = prev_nav[e, pe]
-            if old != ne:
-                booked_any |= _rebrief(e, old, now, rebrief_s, touched, cum, booked, free,
-                                       edges)
-                booked_any |= _rebrief(e, ne, now, rebrief_s, touched, cum, booked, free,
-                                       edges)
-            old = prev_cls[e, pe]
-            if old != ce:
-                booked_any |= _rebrief(e, old, now, rebrief_s, touched, cum, booked, free,
-                                       edges)
-                booked_any |= _rebrief(e, ce, now, rebrief_s, touched, cum, booked, free,
-                                       edges)
+            booked_any |= _rebrief(e, prev_nav[e, pe], ne, now, rebrief_s, touched, cum,
+                                   booked, free, edges)
+            booked_any |= _rebrief(e, prev_cls[e, pe], ce, now, rebrief_s, touched, cum,
+                                   booked, free, edges)
         # the route: when the robot sets off (its navigator free), its travel, the quality
         nav_class = skill[e, ne] if ne >= 0 else 1
         v = speed[e, re] * (skill_speed[nav_class] if ne >= 0 else 1.0)
