@@ -102,10 +102,10 @@ def recipe_estimate(aux_steps: int = 20, ita_steps: int = 2, ctr_steps: int = 1,
 
 def decode_step_forward(device: str, episodes: int = 128, pois: int = 60,
                         repeats: int = 200) -> float:
-    """Milliseconds of one POI-step scoring at a decoding step's size, as the decoder makes it:
-    the step's numpy inputs to `device`, the scorer's forward pass without gradient (hidden
-    layers for the legal POIs, half of them here), the logits back to the CPU for the choice
-    (median of `repeats`)."""
+    """Milliseconds of one POI-step scoring at a decoding step's size by the network's torch
+    forward pass: the step's numpy inputs to `device`, the scorer's forward pass without
+    gradient (half of the POIs legal), the logits back to the CPU for the choice (median of
+    `repeats`). A decode itself scores on the CPU with its compiled loop (`scorer_loop`)."""
     from ata.plugins.ata_hrl.network import FEATURES, ATAHRLNet, NetConfig
     net = ATAHRLNet(NetConfig()).to(device)
     scorer, d = net.ita.scorers["poi"], net.cfg.d_model
@@ -113,7 +113,6 @@ def decode_step_forward(device: str, episodes: int = 128, pois: int = 60,
     feats = gen.random((episodes, pois, FEATURES["poi"]), dtype=np.float32)
     prior = gen.random((episodes, pois), dtype=np.float32)
     mask = gen.random((episodes, pois)) < 0.5
-    legal = np.flatnonzero(mask)                  # the decoder scores the legal POIs alone
     cand = torch.zeros(episodes, pois, d, device=device)
     ctx = torch.zeros(episodes, d, device=device)
     times = []
@@ -121,8 +120,7 @@ def decode_step_forward(device: str, episodes: int = 128, pois: int = 60,
         for _ in range(repeats):
             t0 = time.perf_counter()
             logits = scorer(torch.from_numpy(feats).to(device), cand, ctx,
-                            torch.from_numpy(prior).to(device), torch.from_numpy(mask).to(device),
-                            legal=torch.from_numpy(legal).to(device))
+                            torch.from_numpy(prior).to(device), torch.from_numpy(mask).to(device))
             logits.cpu()
             times.append(time.perf_counter() - t0)
     return 1000 * statistics.median(times)

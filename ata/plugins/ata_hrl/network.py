@@ -88,12 +88,6 @@ class Encoder(nn.Module):
         return dict(zip(GROUPS, torch.split(out, sizes, dim=1)))
 
 
-MIN_ROWS = 16
-"""Fewest rows a `StepScorer` with `legal` candidates multiplies at once (`_legal_hidden`): a
-CPU's matrix product may round a row otherwise when it multiplies only a few (one to three rows
-on the CPUs tried), and from this many on each row comes out as among all of them."""
-
-
 def _linear(layer: nn.Linear, x: torch.Tensor) -> torch.Tensor:
     """`layer(x)` by `F.linear` (its weight and its bias, None where it has none): the same op
     without the module's per-call machinery."""
@@ -117,50 +111,19 @@ class StepScorer(nn.Module):
         self.log_scale = nn.Parameter(torch.tensor(math.log(PRIOR_SCALE[kind])))
 
     def forward(self, feats: torch.Tensor, cand: torch.Tensor, ctx: torch.Tensor,
-                prior: torch.Tensor, mask: torch.Tensor, residual: bool = True,
-                cand_hidden: torch.Tensor | None = None,
-                legal: torch.Tensor | None = None) -> torch.Tensor:
-        """feats (..., N, F), cand (..., N, d), ctx (..., d), prior and mask (..., N).
-        `cand_hidden`: ``self.cand(cand)`` computed once by a caller that scores the same
-        candidates step after step (the decoder), the same tensor, so the same logits.
-        `legal`: (E, N) inputs only: the flat indices (e * N + n) of the legal candidates
-        (those `mask` allows), for a caller with few of them; the hidden layers are computed
-        for those alone, the others' logits being masked (the same logits: see
-        `_legal_hidden`)."""
+                prior: torch.Tensor, mask: torch.Tensor, residual: bool = True) -> torch.Tensor:
+        """feats (..., N, F), cand (..., N, d), ctx (..., d), prior and mask (..., N). A
+        decode computes the same logits with its compiled loop (`scorer_loop`); this is the
+        form a trainer differentiates."""
         logit = self.log_scale.exp() * prior
         if residual:
             # the layers' own functions (`_linear`, torch.relu) without the modules' per-call
-            # machinery, which a decode pays at each of its thousands of steps: the same ops
-            cand_h = _linear(self.cand, cand) if cand_hidden is None else cand_hidden
-            if legal is None:
-                hid = self._hidden(_linear(self.feat, feats) + cand_h
-                                   + _linear(self.ctx, ctx)[..., None, :])
-            else:
-                hid = self._legal_hidden(feats, cand_h, ctx, legal)
+            # machinery: the same ops
+            hid = self._hidden(_linear(self.feat, feats) + _linear(self.cand, cand)
+                               + _linear(self.ctx, ctx)[..., None, :])
             logit = (logit + _linear(self.out[3], hid)[..., 0]
                      + _linear(self.linear, feats)[..., 0])
         return logit.masked_fill(~mask, NEG)
-
-    def _legal_hidden(self, feats: torch.Tensor, cand_h: torch.Tensor, ctx: torch.Tensor,
-                      legal: torch.Tensor) -> torch.Tensor:
-        """The last hidden layer (E, N, h) at the legal candidates, zero elsewhere. Each row of
-        a matrix product on CPU comes out the same whatever the number of rows from a few on
-        (not at 1 to 3 rows on some CPUs), so the legal rows are padded to at least MIN_ROWS
-        with copies of the first
-        (tests/test_ata_hrl.py checks that the logits do not change). The output layer, of one
-        unit, gives a row a result that depends on the matrix's shape: it runs on the whole
-        (E, N, h), as without `legal`."""
-        E, N, nf = feats.shape
-        h = cand_h.shape[-1]
-        full = feats.new_zeros(E * N, h)
-        k = legal.shape[0]
-        if k:
-            rows = legal if k >= MIN_ROWS else torch.cat([legal, legal[:1].expand(MIN_ROWS - k)])
-            hid = (_linear(self.feat, feats.reshape(E * N, nf).index_select(0, rows))
-                   + cand_h.reshape(E * N, h).index_select(0, rows)
-                   + _linear(self.ctx, ctx).index_select(0, rows // N))
-            full.index_copy_(0, legal, self._hidden(hid)[:k])
-        return full.reshape(E, N, h)
 
     def _hidden(self, x: torch.Tensor) -> torch.Tensor:
         """`out` but its output layer: activation, hidden layer, activation."""
