@@ -366,9 +366,10 @@ def test_a_run_under_way_keeps_a_second_one_out(cli, tmp_path):
     """A real `ata run` process holds its folder: a second run on it is refused (exit 2)
     naming the first, and the folder is free again once the first is stopped."""
     out = tmp_path / "both"
-    # the loops compiled and cached first (numba): a SIGINT that lands while llvmlite compiles
-    # is lost in its callback, and the interrupted run would go on to the end (the issue note
-    # of stop 52); this test is about the folder's lock
+    # the loops compiled and cached first (numba), so that the interrupted run below is
+    # stepping, not compiling, when its SIGINT lands (one that lands in the compiler stops the
+    # run only at the next epoch: test_a_ctrl_c_lost_where_it_landed_still_stops_the_run);
+    # this test is about the folder's lock
     warm = cli("run", "builtin:greedy", "-q", "--set", "mission.scenarios=2", "-o",
                tmp_path / "warm")
     assert warm.exit_code == 0, warm.output
