@@ -263,6 +263,44 @@ def test_an_interrupted_training_says_what_was_saved(cli, tmp_path, monkeypatch)
         "to go on from it (the steps after it run again)")
 
 
+def test_a_ctrl_c_lost_in_a_training_step_still_stops_the_training(cli, tmp_path, monkeypatch):
+    # a SIGINT raised and dropped inside a C library's callback (numba compiling a loop in the
+    # first rollout) must still stop `ata train`, at the next row the trainer logs
+    import signal
+    import time
+    logged = []
+
+    class Trainer:
+        log_fields = ["phase", "step"]
+
+        def total_steps(self):
+            return 10
+
+        def done_steps(self):
+            return len(logged)
+
+        def run(self, run, resume=False):
+            for step in range(1, 11):
+                if step == 2:
+                    try:
+                        os.kill(os.getpid(), signal.SIGINT)
+                        time.sleep(1.0)
+                    except KeyboardInterrupt:
+                        pass                             # lost, as in the callback
+                logged.append(step)
+                run.log({"phase": "ita", "step": step})
+            return {"wall_s": 0.0, "best_eval": 0.0}
+
+    monkeypatch.setattr(runner, "build_trainer", lambda session: Trainer())
+    out = tmp_path / "train"
+    result = cli("train", "--plugins", "ita", "-q", "-o", out)
+    assert result.exit_code == 130, result.output
+    assert logged == [1, 2]
+    assert flat(result.output) == (f"interrupted before the first checkpoint: nothing to "
+                                   f"resume in {out}; run the same command again to start over")
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler    # put back
+
+
 def test_the_skill_speed_error_names_the_file(cli, small):
     small.write_text(SMALL + "\n[robot]\nskill_speed = [1.0]\n", encoding="utf-8")
     assert_user_error(cli("check", small), f"error: {small}: [robot] key 'skill_speed': needs "

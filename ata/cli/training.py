@@ -9,6 +9,7 @@ import typer
 
 from ata.cli.common import AddressOption, SetOption, _split, app, user_errors
 from ata.experiment import terminal
+from ata.experiment.interrupts import Interrupts
 from ata.experiment.terminal import console, err_console, escape, note
 
 
@@ -108,7 +109,13 @@ def train(mission: Optional[str] = typer.Argument(
         _curves_note(run_dir)
     run = None
     try:
-        with terminal.training_bar(f"train {m.settings.name}", trainer, quiet) as on_row:
+        # a Ctrl-C lost where it landed (numba compiling a loop) stops at the next row the
+        # trainer logs or tells of
+        with Interrupts() as interrupts, \
+                terminal.training_bar(f"train {m.settings.name}", trainer, quiet) as bar:
+            def on_row(row: dict | None) -> None:
+                interrupts.check()
+                bar(row)
             run = TrainRun(run_dir, m.to_toml(), trainer.log_fields, resume=resume is not None,
                            on_row=on_row)
             on_row(None)

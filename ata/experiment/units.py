@@ -11,9 +11,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import dataclasses
-import signal
 import sys
-import threading
 import time
 from dataclasses import dataclass
 from typing import Any, Callable, Iterator
@@ -25,6 +23,7 @@ from ata.core.mission import Mission
 from ata.core.references import restore
 from ata.core.registry import Register, collect_components, get_plugin_manager
 from ata.experiment import runlog
+from ata.experiment.interrupts import Interrupts
 from ata.experiment.isolate import Isolation, prober
 from ata.experiment.remote import worker_registry
 from ata.runtime.cache import run_cache
@@ -173,7 +172,7 @@ def run_units(units: list[Unit], executor: Executor, *, log: runlog.RunLog | Non
     """
     parts, todo = runlog.parts_and_todo(log, len(units))
     t0 = time.perf_counter()
-    with _Interrupts() as interrupts:
+    with Interrupts() as interrupts:
         def with_epochs(unit: Unit) -> dict:
             share = unit.ids.size / unit.mission.clock.n_epochs
 
@@ -193,30 +192,3 @@ def run_units(units: list[Unit], executor: Executor, *, log: runlog.RunLog | Non
                 progress(float(np.asarray(out["scenario"]).size))
             interrupts.check()
     return parts, time.perf_counter() - t0
-
-
-class _Interrupts:
-    """Ctrl-C delivered as Python delivers it (a KeyboardInterrupt where the program is), and
-    remembered: one that is lost where it lands (inside a C library's callback, as numba's
-    compiler's while it compiles a hot loop on a machine's first run) still stops the run at
-    the next epoch or unit, after what has ended is recorded. Only Python's own handler, in
-    the main thread, is replaced (and put back)."""
-
-    def __enter__(self) -> "_Interrupts":
-        self.hit, self.previous = False, None
-        if (threading.current_thread() is threading.main_thread()
-                and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
-            self.previous = signal.signal(signal.SIGINT, self._handler)
-        return self
-
-    def _handler(self, signum, frame) -> None:
-        self.hit = True
-        raise KeyboardInterrupt
-
-    def check(self) -> None:
-        if self.hit:
-            raise KeyboardInterrupt
-
-    def __exit__(self, *exc) -> None:
-        if self.previous is not None:
-            signal.signal(signal.SIGINT, self.previous)
