@@ -281,3 +281,38 @@ def test_the_decision_process_finds_the_hosts_compiled_loops(tmp_path):
     out = done.stdout + done.stderr
     assert "1.0" in done.stdout
     assert f"data loaded from '{cache}" in out and "data saved to" not in out, out
+
+
+def test_the_decision_process_finds_a_methods_own_compiled_loops(tmp_path):
+    # a method's loops (compiled with the host's jit) are cached beside its code by the host:
+    # the process copies them too, walking a plugin package whole, and only the folder of a
+    # plugin file
+    import os
+    import subprocess
+    loop = "from ata.model.scalar import jit\n\n\n@jit\ndef twice(x):\n    return 2.0 * x\n"
+    (tmp_path / "mypkg" / "inner").mkdir(parents=True)
+    (tmp_path / "mypkg" / "__init__.py").write_text("")
+    (tmp_path / "mypkg" / "inner" / "__init__.py").write_text("")
+    (tmp_path / "mypkg" / "inner" / "loops.py").write_text(loop)
+    (tmp_path / "solo.py").write_text(loop)
+    calls = ("import sys; sys.path.insert(0, {root!r}); import mypkg.inner.loops as a, solo; "
+             "{seed}print(a.twice(2.0), solo.twice(3.0))")
+    root = str(tmp_path)
+    host = subprocess.run([sys.executable, "-c", calls.format(root=root, seed="")],
+                          capture_output=True, text=True, timeout=300)
+    assert host.returncode == 0 and "4.0 6.0" in host.stdout, host.stderr
+    assert list(tmp_path.glob("__pycache__/solo.twice-*.nbi"))
+    assert list(tmp_path.glob("mypkg/inner/__pycache__/loops.twice-*.nbi"))
+    cache = tmp_path / "numba"
+    seed = ("from ata.runtime.decider import seed_compiled_cache; "
+            "seed_compiled_cache(['mypkg.inner.loops', 'solo']); ")
+    done = subprocess.run([sys.executable, "-c", calls.format(root=root, seed=seed)],
+                          env={**os.environ, "NUMBA_CACHE_DIR": str(cache),
+                               "NUMBA_DEBUG_CACHE": "1"},
+                          capture_output=True, text=True, timeout=300)
+    out = done.stdout + done.stderr
+    assert done.returncode == 0 and "4.0 6.0" in done.stdout, done.stderr
+    assert "data saved to" not in out, out
+    for name in ("loops.twice", "solo.twice"):
+        assert any(name in line and f"data loaded from '{cache}" in line
+                   for line in out.splitlines()), out

@@ -255,8 +255,10 @@ def serve(fd_in: int, fd_out: int) -> None:
                 sys.path[:0] = req.get("paths", [])
                 for name in req.get("modules", []):
                     importlib.import_module(name)
-                decider = Decider(pickle.loads(req["mission"]), req.get("modules", []),
-                                  req.get("only", False))
+                mission = pickle.loads(req["mission"])     # loads the plugin files it names
+                seed_compiled_cache(req.get("modules", []) + sorted(
+                    n for n in sys.modules if n.startswith("ata_file_")))
+                decider = Decider(mission, req.get("modules", []), req.get("only", False))
                 child_send(fd_out, {"ready": True})
                 continue
             t0 = time.perf_counter()
@@ -270,13 +272,18 @@ def serve(fd_in: int, fd_out: int) -> None:
             child_send(fd_out, {"error": traceback.format_exc(), "kind": "exception"})
 
 
-def seed_compiled_cache() -> None:
-    """ata's compiled loops as the host cached them beside its modules, copied into this
-    process's numba cache (``NUMBA_CACHE_DIR``, in the sandbox's own tmpfs), laid out as numba
-    looks for them there. In the sandbox the package is read-only, and numba uses no cache it
-    cannot write: without this, each decision process compiled every loop again (tens of
-    seconds a start). numba checks each copy against the sources as it checks its own cache; a
-    loop the host never compiled is compiled here. Nothing goes back to the host."""
+_SEEDED: set[str] = set()        # the folders whose loops this process has copied
+
+
+def seed_compiled_cache(modules: list[str] = ()) -> None:
+    """The compiled loops the host cached beside ata's modules and beside the method's own
+    (`modules`: a plugin package's, walked whole from its top-level folder; a plugin file's,
+    the cache beside the file), copied into this process's numba cache (``NUMBA_CACHE_DIR``, in
+    the sandbox's own tmpfs), laid out as numba looks for them there. In the sandbox the code
+    is read-only, and numba uses no cache it cannot write: without this, each decision process
+    compiled every loop again (tens of seconds a start). numba checks each copy against the
+    sources as it checks its own cache; a loop the host never compiled is compiled here.
+    Nothing goes back to the host."""
     target = os.environ.get("NUMBA_CACHE_DIR")
     if not target:
         return
@@ -286,21 +293,31 @@ def seed_compiled_cache() -> None:
         subpath = _CacheLocator.get_suitable_cache_subpath
     except (ImportError, AttributeError):
         return
-    root = os.path.dirname(os.path.abspath(ata.__file__))
-    for folder, dirs, files in os.walk(root):
-        if os.path.basename(folder) != "__pycache__":
+    roots = {os.path.dirname(os.path.abspath(ata.__file__)): True}
+    for name in modules:
+        top = sys.modules.get(name.split(".")[0])
+        file = getattr(top, "__file__", None)
+        if file and not name.startswith("ata."):
+            roots.setdefault(os.path.dirname(os.path.abspath(file)), hasattr(top, "__path__"))
+    for root, whole in roots.items():
+        if root in _SEEDED:
             continue
-        cached = [f for f in files if f.endswith((".nbi", ".nbc"))]
-        if not cached:
-            continue
-        # numba names a module's cache folder after the module's file
-        dest = os.path.join(target, subpath(os.path.join(os.path.dirname(folder), "m.py")))
-        try:
-            os.makedirs(dest, exist_ok=True)
-            for name in cached:
-                shutil.copyfile(os.path.join(folder, name), os.path.join(dest, name))
-        except OSError:
-            return
+        _SEEDED.add(root)
+        caches = (os.path.join(f, "__pycache__") for f, _, _ in os.walk(root)) if whole \
+            else [os.path.join(root, "__pycache__")]
+        for folder in caches:
+            try:
+                cached = [f for f in os.listdir(folder) if f.endswith((".nbi", ".nbc"))]
+            except OSError:
+                continue
+            # numba names a module's cache folder after the module's file
+            dest = os.path.join(target, subpath(os.path.join(os.path.dirname(folder), "m.py")))
+            try:
+                os.makedirs(dest, exist_ok=True)
+                for entry in cached:
+                    shutil.copyfile(os.path.join(folder, entry), os.path.join(dest, entry))
+            except OSError:
+                return
 
 
 def main() -> None:
