@@ -61,17 +61,21 @@ def weights(scorer: StepScorer) -> ScorerWeights:
 
 
 @jit
+def _project_row(x, w, out):
+    """out (h,) = x (d,) @ w (d, h), the inputs in order from zero."""
+    out[:] = np.float32(0.0)
+    for i in range(x.shape[0]):
+        xi = x[i]
+        for j in range(w.shape[1]):
+            out[j] += xi * w[i, j]
+
+
+@jit
 def project(x, w):
     """x (M, d) @ w (d, h), row by row: (M, h) float32."""
-    M, d = x.shape
-    h = w.shape[1]
-    out = np.zeros((M, h), np.float32)
-    for m in range(M):
-        o = out[m]
-        for i in range(d):
-            xi = x[m, i]
-            for j in range(h):
-                o[j] += xi * w[i, j]
+    out = np.empty((x.shape[0], w.shape[1]), np.float32)
+    for m in range(x.shape[0]):
+        _project_row(x[m], w, out[m])
     return out
 
 
@@ -103,12 +107,7 @@ def _logits(context, feats, prior, mask, cand_h, tasks, robots, robot, task, res
                             ctx[i] = tasks[e, task[e], i]
                         else:
                             ctx[i] = tasks[e, task[e], i] + robots[e, robot[e], i]
-                    for j in range(h):
-                        ctx_h[j] = zero
-                    for i in range(d):
-                        ci = ctx[i]
-                        for j in range(h):
-                            ctx_h[j] += ci * ctx_w[i, j]
+                    _project_row(ctx, ctx_w, ctx_h)
                     ctx_done = True
                 f = feats[e, n]
                 for j in range(h):
