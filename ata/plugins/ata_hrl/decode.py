@@ -13,7 +13,7 @@ from ata.core.state import Allocation
 from ata.plugins.ata_hrl import scorer_loop
 from ata.plugins.ata_hrl.decoder import Decoder
 from ata.plugins.ata_hrl.inputs import StepInputs
-from ata.plugins.ata_hrl.network import KINDS, AllocationNet, step_context
+from ata.plugins.ata_hrl.network import KINDS, NEG, AllocationNet, step_context
 
 Chooser = Callable[[str, torch.Tensor], np.ndarray]
 """(kind, logits (E, N)) -> chosen index per episode (E,)."""
@@ -234,22 +234,27 @@ def trace_log_prob(net: AllocationNet, emb: dict[str, torch.Tensor], trace: Deco
     if trace.n_steps == 0:
         return logp, ent
     for kind in KINDS:
-        st = trace.stacked(kind)
-        feats = tensor(st["features"])                         # (S, E, N, F)
-        mask = tensor(st["mask"])
-        prior = tensor(st["prior"])
-        n = mask.shape[-1]
+        st = trace.stacked(kind)                               # (S, E, ...) a step each
+        mask = st["mask"]
+        # a decision with one legal choice (or of an episode whose decoding is over) carries
+        # no probability mass: scored are the legal candidates of the others alone
+        ks, ke = np.nonzero((mask.sum(-1) > 1) & st["active"])
+        if ks.size == 0:
+            continue
+        K, n = ks.size, mask.shape[-1]
+        rk, rn = np.nonzero(mask[ks, ke])                      # the rows: (decision, candidate)
         cand = net.candidates(kind, emb)[:, :n]                  # (E, N, d)
         idx = {"robot": tensor(st["robot"]), "task": tensor(st["task"])}
-        ctx = step_context(kind, emb, idx)                      # (S, E, d)
-        logits = net.scorers[kind](feats, cand, ctx, prior, mask, residual)
+        ctx = step_context(kind, emb, idx)[tensor(ks), tensor(ke)]     # (K, d)
+        rows = net.scorers[kind].rows(
+            tensor(st["features"][ks[rk], ke[rk], rn]), cand.reshape(-1, cand.shape[-1]), ctx,
+            tensor(st["prior"][ks[rk], ke[rk], rn]), tensor(ke[rk] * n + rn), tensor(rk),
+            residual)
+        logits = torch.full((K, n), NEG, dtype=rows.dtype, device=dev).index_put(
+            (tensor(rk), tensor(rn)), rows)
         lsm = torch.log_softmax(logits, -1)
-        choice = tensor(st["choice"]).long()
-        chosen = lsm.gather(-1, choice[..., None])[..., 0]
-        active = tensor(st["active"])
-        # a sub-decision with one legal choice carries no probability mass
-        free = (mask.sum(-1) > 1) & active
-        logp = logp + torch.where(free, chosen, 0.0).sum(0)
-        p = lsm.exp()
-        ent = ent + torch.where(free, -(p * lsm.clamp(min=-30)).sum(-1), 0.0).sum(0)
+        choice = tensor(st["choice"][ks, ke].astype(np.int64))
+        episode = tensor(ke)
+        logp = logp.index_add(0, episode, lsm.gather(-1, choice[:, None])[:, 0])
+        ent = ent.index_add(0, episode, -(lsm.exp() * lsm.clamp(min=-30)).sum(-1))
     return logp, ent

@@ -113,8 +113,8 @@ class StepScorer(nn.Module):
     def forward(self, feats: torch.Tensor, cand: torch.Tensor, ctx: torch.Tensor,
                 prior: torch.Tensor, mask: torch.Tensor, residual: bool = True) -> torch.Tensor:
         """feats (..., N, F), cand (..., N, d), ctx (..., d), prior and mask (..., N). A
-        decode computes the same logits with its compiled loop (`scorer_loop`); this is the
-        form a trainer differentiates."""
+        decode computes these logits, up to float32 rounding, with its compiled loop
+        (`scorer_loop`), and a trainer's update with `rows` on the rows that count."""
         logit = self.log_scale.exp() * prior
         if residual:
             # the layers' own functions (`_linear`, torch.relu) without the modules' per-call
@@ -124,6 +124,21 @@ class StepScorer(nn.Module):
             logit = (logit + _linear(self.out[3], hid)[..., 0]
                      + _linear(self.linear, feats)[..., 0])
         return logit.masked_fill(~mask, NEG)
+
+    def rows(self, feats: torch.Tensor, cand: torch.Tensor, ctx: torch.Tensor,
+             prior: torch.Tensor, row_cand: torch.Tensor, row_ctx: torch.Tensor,
+             residual: bool = True) -> torch.Tensor:
+        """`forward`'s logits of M candidate rows alone, without the padding a dense forward
+        computes (a trainer's update scores the legal candidates of the decisions with a
+        choice): feats (M, F) and prior (M,) the rows', cand (C, d) and ctx (K, d) the tokens,
+        row_cand and row_ctx (M,) each row's index into them; each token is projected once."""
+        logit = self.log_scale.exp() * prior
+        if residual:
+            hid = self._hidden(_linear(self.feat, feats) + _linear(self.cand, cand)[row_cand]
+                               + _linear(self.ctx, ctx)[row_ctx])
+            logit = (logit + _linear(self.out[3], hid)[..., 0]
+                     + _linear(self.linear, feats)[..., 0])
+        return logit
 
     def _hidden(self, x: torch.Tensor) -> torch.Tensor:
         """`out` but its output layer: activation, hidden layer, activation."""
