@@ -297,7 +297,7 @@ def seed_compiled_cache(modules: list[str] = ()) -> None:
     for name in modules:
         top = sys.modules.get(name.split(".")[0])
         file = getattr(top, "__file__", None)
-        if file and not name.startswith("ata."):
+        if file:
             roots.setdefault(os.path.dirname(os.path.abspath(file)), hasattr(top, "__path__"))
     for root, whole in roots.items():
         if root in _SEEDED:
