@@ -15,18 +15,24 @@ from __future__ import annotations
 import numpy as np
 
 from ata.model.compiling import jit
+from ata.model.tables import WORKLOAD_HIGH, WORKLOAD_LOW, WORKLOAD_PLATEAU
 
 __all__ = ["jit", "workload", "expected_points", "human_net", "option_value", "rate", "cum_at",
            "utilisation", "book"]
 
 
+_LO, _HI = WORKLOAD_PLATEAU
+_A, _B, _C = WORKLOAD_LOW
+_A2, _B2, _C2 = WORKLOAD_HIGH
+
+
 @jit
 def workload(u: float) -> float:
-    if u < 0.45:
-        return -2.47 * u * u + 2.22 * u + 0.5
-    if u < 0.65:
+    if u < _LO:
+        return _A * u * u + _B * u + _C
+    if u < _HI:
         return 1.0
-    return -4.08 * u * u + 5.31 * u - 0.724
+    return _A2 * u * u + _B2 * u - _C2
 
 
 @jit

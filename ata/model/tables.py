@@ -65,12 +65,26 @@ def fatigue(hours: np.ndarray, floor: float = FATIGUE_FLOOR) -> np.ndarray:
     return np.where(h < 1.0, 1.0, np.maximum(floor, 1.3 - 0.3 * h))
 
 
+WORKLOAD_PLATEAU = (0.45, 0.65)
+"""F_w is 1 for a utilisation u in [0.45, 0.65) [paper]; below, a human is too idle, above, too
+busy."""
+WORKLOAD_LOW = (-2.47, 2.22, 0.5)
+"""F_w = a u^2 + b u + c below the plateau, (a, b, c) [paper]."""
+WORKLOAD_HIGH = (-4.08, 5.31, 0.724)
+"""F_w = a u^2 + b u - c from the plateau's end, (a, b, c) [paper]."""
+FATIGUED_BELOW = 0.95
+"""A classification counts as fatigued when F_f is below this (the calibration target, the human
+model's ``fatigued_share``)."""
+
+
 def workload(u: np.ndarray) -> np.ndarray:
-    """F_w of utilisation u: rising quadratic, plateau at 1 on [0.45, 0.65), falling quadratic."""
+    """F_w of utilisation u: rising quadratic, plateau at 1 on `WORKLOAD_PLATEAU`, falling
+    quadratic."""
     u = np.asarray(u, dtype=float)
-    low = -2.47 * u * u + 2.22 * u + 0.5
-    high = -4.08 * u * u + 5.31 * u - 0.724
-    return np.where(u < 0.45, low, np.where(u < 0.65, 1.0, high))
+    (a, b, c), (a2, b2, c2) = WORKLOAD_LOW, WORKLOAD_HIGH
+    low = a * u * u + b * u + c
+    high = a2 * u * u + b2 * u - c2
+    return np.where(u < WORKLOAD_PLATEAU[0], low, np.where(u < WORKLOAD_PLATEAU[1], 1.0, high))
 
 
 def human_success(eta: np.ndarray, lam: np.ndarray, f_f: np.ndarray, f_w: np.ndarray,

@@ -34,6 +34,11 @@ CAPTURE_S = 3.0
 """Time to capture the image at a POI, s (section 4, [testbed])."""
 REPLAN_S = 10.0
 """Hold of a robot out on its route whose next target a reallocation changes, s (section 3a)."""
+UAV_SPEED = 8.0
+"""A UAV's autonomous speed, m/s (section 4, [testbed]); learned policies read speeds in units of
+it."""
+UGV_SPEED = 3.0
+"""A UGV's autonomous speed, m/s (section 4, [testbed])."""
 SKILL_SPEED = (2.0 / 3.0, 1.0, 1.5)
 """Speed factor under a human navigator of skill band low, medium, high (section 4)."""
 

@@ -251,9 +251,9 @@ class HumanModel:
                                               p_ok=p_ok)
             h.cls_ready[cb, cp] = np.inf
             h.cls_count[cb, ch] += 1
-            h.cls_fatigued[cb, ch] += f_f < 0.95
-            h.cls_u_low[cb, ch] += u < 0.45
-            h.cls_u_high[cb, ch] += u >= 0.65
+            h.cls_fatigued[cb, ch] += f_f < tables.FATIGUED_BELOW
+            h.cls_u_low[cb, ch] += u < tables.WORKLOAD_PLATEAU[0]
+            h.cls_u_high[cb, ch] += u >= tables.WORKLOAD_PLATEAU[1]
         end = begin + duration
         self._book(sim, b, hh, start, end)
         h.sa[b, hh] = sa

@@ -105,8 +105,8 @@ class RobotModel:
 
     @dataclass
     class Settings:
-        uav_speed: float = param(8.0, min=0.0, help="UAV autonomous speed, m/s")
-        ugv_speed: float = param(3.0, min=0.0, help="UGV autonomous speed, m/s")
+        uav_speed: float = param(team.UAV_SPEED, min=0.0, help="UAV autonomous speed, m/s")
+        ugv_speed: float = param(team.UGV_SPEED, min=0.0, help="UGV autonomous speed, m/s")
         uav_fraction: float = param(0.5, min=0.0, max=1.0, help="share of UAVs in the team")
         capture_s: float = param(team.CAPTURE_S, min=0.0,
                                  help="time to capture the image at a POI, s")

@@ -1,10 +1,10 @@
 """Observations to the inputs of ATA-HRL's networks and decoder.
 
 Encoder tokens: the inherent information I (humans: eta, lambda, skill one-hot; robots: UAV, UGV,
-speed / 8; tasks: x, y, kind, difficulty one-hot, points / 35, the most a POI is worth) and,
-when reallocating, the state S as the policy sees it (`STATE_COLUMNS`: humans: working hours /
-3, fatigue, idleness, SA; robots: x, y, idleness, working, has a target; tasks: unvisited,
-captured, classified, kind, difficulty one-hot).
+speed / 8, a UAV's speed; tasks: x, y, kind, difficulty one-hot, points / 35, the most a POI is
+worth) and, when reallocating, the state S as the policy sees it (`STATE_COLUMNS`: humans:
+working hours / 3, fatigue, idleness, SA; robots: x, y, idleness, working, has a target; tasks:
+unvisited, captured, classified, kind, difficulty one-hot).
 
 "As the policy sees it": the raw observed S, or, where the mission's reconstructors give them,
 their estimates (the ``aux`` reconstructor's fatigue, robot and task rows). The w/o.AUX ablation
@@ -18,6 +18,7 @@ import torch
 
 from ata.core.state import DecisionContext, Observation
 from ata.model.tables import MAX_POINTS
+from ata.model.team import UAV_SPEED
 
 GROUPS = ("humans", "robots", "tasks")
 
@@ -31,12 +32,15 @@ def inherent_features(I: Observation) -> dict[str, np.ndarray]:
     return {
         "humans": np.concatenate([np.stack([h.col("cognitive"), h.col("expertise")], -1),
                                   onehot3(h.col("skill"))], -1),
-        "robots": np.stack([r.col("uav"), r.col("ugv"), r.col("speed") / 8.0], -1),
+        "robots": np.stack([r.col("uav"), r.col("ugv"), r.col("speed") / UAV_SPEED], -1),
         "tasks": np.concatenate([np.stack([t.col("x"), t.col("y"), t.col("kind")], -1),
                                  onehot3(t.col("difficulty")),
                                  (t.col("points") / MAX_POINTS)[..., None]], -1),
     }
 
+
+HOURS_UNIT = 3.0
+"""`state_features` gives a human's working time in units of this many hours."""
 
 STATE_COLUMNS = {
     "humans": ("working_time", "fatigue", "idleness", "sa"),
@@ -44,7 +48,7 @@ STATE_COLUMNS = {
     "tasks": ("unvisited", "captured", "classified", "kind", "difficulty_low",
               "difficulty_medium", "difficulty_high"),
 }
-"""The columns of `state_features`, by group, in order (working_time in units of 3 hours)."""
+"""The columns of `state_features`, by group, in order (working_time in `HOURS_UNIT`s)."""
 
 
 def state_column(feats: dict[str, np.ndarray], group: str, name: str) -> np.ndarray:
@@ -59,7 +63,7 @@ def state_features(S: Observation, fatigue: np.ndarray | None = None) -> dict[st
     h, r, t = S["humans"], S["robots"], S["tasks"]
     f = h.col("fatigue") if fatigue is None else fatigue
     return {
-        "humans": np.stack([h.col("working_time") / 3.0, f, h.col("idleness"), h.col("sa")], -1),
+        "humans": np.stack([h.col("working_time") / HOURS_UNIT, f, h.col("idleness"), h.col("sa")], -1),
         "robots": np.stack([r.col("x"), r.col("y"), r.col("idleness"), r.col("working"),
                             (r.col("target") >= 0).astype(float)], -1),
         "tasks": np.concatenate([np.stack([t.col("unvisited"), t.col("captured"),

@@ -121,8 +121,7 @@ class StepScorer(nn.Module):
             # machinery: the same ops
             hid = self._hidden(_linear(self.feat, feats) + _linear(self.cand, cand)
                                + _linear(self.ctx, ctx)[..., None, :])
-            logit = (logit + _linear(self.out[3], hid)[..., 0]
-                     + _linear(self.linear, feats)[..., 0])
+            logit = self._tail(logit, hid, feats)
         return logit.masked_fill(~mask, NEG)
 
     def rows(self, feats: torch.Tensor, cand: torch.Tensor, ctx: torch.Tensor,
@@ -136,13 +135,17 @@ class StepScorer(nn.Module):
         if residual:
             hid = self._hidden(_linear(self.feat, feats) + _linear(self.cand, cand)[row_cand]
                                + _linear(self.ctx, ctx)[row_ctx])
-            logit = (logit + _linear(self.out[3], hid)[..., 0]
-                     + _linear(self.linear, feats)[..., 0])
+            logit = self._tail(logit, hid, feats)
         return logit
 
     def _hidden(self, x: torch.Tensor) -> torch.Tensor:
         """`out` but its output layer: activation, hidden layer, activation."""
         return torch.relu(_linear(self.out[1], torch.relu(x)))
+
+    def _tail(self, logit: torch.Tensor, hid: torch.Tensor, feats: torch.Tensor) -> torch.Tensor:
+        """`logit` plus the residual: `out`'s output layer on `hid` and the direct path from
+        the features."""
+        return logit + _linear(self.out[3], hid)[..., 0] + _linear(self.linear, feats)[..., 0]
 
 
 class KeepScorer(nn.Module):

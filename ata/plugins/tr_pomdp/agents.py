@@ -31,6 +31,8 @@ import torch
 from torch import nn
 
 from ata.core.state import Allocation, DecisionContext
+from ata.model.tables import MAX_POINTS
+from ata.model.team import UAV_SPEED
 
 ROBOT_OWN, ROBOT_CAND = 10, 12
 HUMAN_OWN, HUMAN_NEW, HUMAN_HELD = 12, 11, 11
@@ -108,7 +110,7 @@ def observe(ctx: DecisionContext, cfg: AgentConfig) -> AgentInputs:
     movable = ctx.reallocatable
     ti, ts = I["tasks"], S["tasks"]
     open_ = ts.col("classified") < 0.5
-    points = ti.col("points") / 35.0
+    points = ti.col("points") / MAX_POINTS
     # public per-POI facts: inherent attributes, observed status, who holds it
     diff = ts.col("difficulty")
     uav_of = np.take_along_axis(I["robots"].col("uav"), prev.robot, axis=1)
@@ -135,7 +137,7 @@ def observe(ctx: DecisionContext, cfg: AgentConfig) -> AgentInputs:
                             np.take_along_axis(dx, cand, -1)[..., None],
                             np.take_along_axis(dy, cand, -1)[..., None], cpub[..., :-1]], -1)
     cfeat = cfeat * cvalid[..., None]
-    own = np.stack([ri.col("uav"), ri.col("ugv"), ri.col("speed") / 8.0, rx, ry,
+    own = np.stack([ri.col("uav"), ri.col("ugv"), ri.col("speed") / UAV_SPEED, rx, ry,
                     rs.col("idleness"), rs.col("working"), (rs.col("target") >= 0),
                     held / 10.0, np.full((B, R), rem)], -1)
     robot_obs = np.concatenate([own, cfeat.reshape(B, R, K * ROBOT_CAND)], -1)

@@ -18,7 +18,7 @@ import torch
 from ata.core.kernel import Simulation, build_component
 from ata.core.settings import param
 from ata.plugins.ata_hrl.components import AuxReconstructor
-from ata.plugins.ata_hrl.features import state_features
+from ata.plugins.ata_hrl.features import HOURS_UNIT, state_column, state_features
 from ata.plugins.ata_hrl.network import FatigueCVAE
 from ata.plugins.ata_hrl.status import status_targets
 from ata.training import Phase
@@ -35,6 +35,11 @@ class Settings:
     aux_steps: int = param(400, min=0, help="aux: supervised steps of the reconstructors")
     aux_lr: float = param(3e-3, min=0.0, max=1.0, help="aux: Adam learning rate of the "
                           "reconstructors")
+
+
+FATIGUE_IN = ("observed", "hours", "cognitive")
+"""The columns of the cVAE's input rows (``fatigue_in``), in `FatigueCVAE`'s argument order: the
+observed fatigue, the working hours, the cognitive ability."""
 
 
 def teacher_log(trainer: Host, mission, ids: np.ndarray) -> dict[str, list]:
@@ -110,10 +115,11 @@ class AuxPhase:
             mission = tr.mission_of(tr.setting(first + i), tr.s.seed)
             log = teacher_log(tr, mission, tr.ids("aux", first + i))
             T = len(log["raw"])
-            hours = np.stack([r["humans"][..., 0] * 3.0 for r in log["raw"]], 1)   # (B, T, H)
-            f_obs = np.stack([r["humans"][..., 1] for r in log["raw"]], 1)
+            hours = np.stack([state_column(r, "humans", "working_time") * HOURS_UNIT
+                              for r in log["raw"]], 1)                     # (B, T, H)
+            f_obs = np.stack([state_column(r, "humans", "fatigue") for r in log["raw"]], 1)
             cog = np.broadcast_to(log["cognitive"][:, None, :], hours.shape)
-            fat_in.append(np.stack([f_obs, hours, cog], -1).reshape(-1, 3))
+            fat_in.append(np.stack([f_obs, hours, cog], -1).reshape(-1, len(FATIGUE_IN)))
             fat_target.append(np.stack(log["fatigue"], 1).reshape(-1))
             for g in ("robots", "tasks"):
                 raw = np.stack([r[g] for r in log["raw"]], 2)          # (B, N, T, F)
@@ -136,7 +142,7 @@ class AuxPhase:
         fi, ft = data["fatigue_in"], data["fatigue_target"]
         if idx is not None:
             fi, ft = fi[idx["fatigue"]], ft[idx["fatigue"]]
-        recon, mu, logvar = net.fatigue(fi[:, 0], fi[:, 1], fi[:, 2], sample=sample)
+        recon, mu, logvar = net.fatigue(*fi.unbind(-1), sample=sample)    # FATIGUE_IN's order
         cvae = FatigueCVAE.loss(recon, ft, mu, logvar)
         f_mse = ((recon - ft) ** 2).mean()
         lat_mse = torch.zeros(())
@@ -172,7 +178,8 @@ class AuxPhase:
         net = self.tr.net
         with torch.no_grad():
             _, f_mse, _ = self.losses(data, sample=False)
-            raw_f = ((data["fatigue_in"][:, 0] - data["fatigue_target"]) ** 2).mean()
+            observed = data["fatigue_in"][:, FATIGUE_IN.index("observed")]
+            raw_f = ((observed - data["fatigue_target"]) ** 2).mean()
             out = {"fatigue_mse": f_mse.item(), "fatigue_mse_raw": raw_f.item()}
             for g in ("robots", "tasks"):
                 est, _ = net.latency[g](data[f"{g}_in"])
