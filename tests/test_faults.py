@@ -263,7 +263,8 @@ def test_an_interrupted_training_says_what_was_saved(cli, tmp_path, monkeypatch)
         "to go on from it (the steps after it run again)")
 
 
-def test_a_ctrl_c_lost_in_a_training_step_still_stops_the_training(cli, tmp_path, monkeypatch):
+def test_a_ctrl_c_lost_in_a_training_step_still_stops_the_training(cli, tmp_path, monkeypatch,
+                                                                   sigint_at_python_default):
     # a SIGINT raised and dropped inside a C library's callback (numba compiling a loop in the
     # first rollout) must still stop `ata train`, at the next row the trainer logs
     import signal

@@ -397,7 +397,8 @@ def test_a_run_under_way_keeps_a_second_one_out(cli, tmp_path):
 
 
 @pytest.mark.skipif(os.name != "posix", reason="signals")
-def test_a_ctrl_c_lost_where_it_landed_still_stops_the_run(cli, tmp_path, monkeypatch):
+def test_a_ctrl_c_lost_where_it_landed_still_stops_the_run(cli, tmp_path, monkeypatch,
+                                                           sigint_at_python_default):
     # a SIGINT that lands inside a C library's callback (llvmlite's, while numba compiles a
     # hot loop on a machine's first run) raises there and is dropped: the run must still stop,
     # at the next epoch, saying what was saved
