@@ -433,11 +433,11 @@ def check_reference(kind: str, target: str, overrides: list[str] = (),
 def check_published_rows(spec: str = "published", per_cell: int = 2,
                          methods: list[str] | None = None,
                          cells: dict[str, list[str]] | None = None) -> None:
-    """Rerun a sample of a set of published rows (`ata.experiment.published.rerun_sample`: the
+    """Rerun a sample of a set of published rows (`ata.experiment.reproduce.rerun_sample`: the
     first and the last scenario of every method's cell, then evenly between; `cells`: method
     -> the cells to rerun of it) and raise AssertionError naming every value that is not
     identical to the published one."""
-    from ata.experiment.published import rerun_sample
+    from ata.experiment.reproduce import rerun_sample
     lines = [x for x in rerun_sample(spec, per_cell, methods, cells=cells)
              if not x.endswith("not rerun")]
     if lines:

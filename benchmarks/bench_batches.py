@@ -17,7 +17,8 @@ import time
 
 import numpy as np
 
-from ata.experiment.runner import BASELINE_MISSION, BUILTIN_MISSION, load_session, run_mission
+from ata.session import BASELINE_MISSION, BUILTIN_MISSION, load_session
+from ata.experiment.runner import run_mission
 from ata.experiment.units import fixed_chunks, scenario_ids
 
 MISSIONS = {"greedy": BASELINE_MISSION, "ATA-HRL (default mission)": BUILTIN_MISSION}

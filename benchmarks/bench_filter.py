@@ -16,7 +16,7 @@ from __future__ import annotations
 import argparse
 
 from bench_batches import least_cpu_seconds
-from ata.experiment.runner import BASELINE_MISSION, load_session
+from ata.session import BASELINE_MISSION, load_session
 from ata.experiment.units import RUN_CHUNK, fixed_chunks, scenario_ids
 
 FILTER = ["components.reconstructors=['filter']"]

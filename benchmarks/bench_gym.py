@@ -24,7 +24,7 @@ from gymnasium.vector import SyncVectorEnv
 from rich.console import Console
 from rich.table import Table
 
-from ata.experiment.runner import BASELINE_MISSION, load_session
+from ata.session import BASELINE_MISSION, load_session
 from ata.gym import CentralisedEnv, CentralisedVectorEnv, sample_masked
 
 SMALL_TEAM = Path(__file__).resolve().parent.parent / "examples" / "missions" / \

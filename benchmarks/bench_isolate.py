@@ -23,8 +23,10 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-from ata.experiment import isolate
-from ata.experiment.runner import build_once, load_session
+from ata.isolation import process as isolate
+from ata.isolation import require_sandbox
+from ata.session import IN_PROCESS, load_session
+from ata.experiment.runner import build_once
 from ata.experiment.units import fixed_chunks, make_units, run_units, scenario_ids
 from ata.runtime.executors import SerialExecutor
 
@@ -34,12 +36,12 @@ def timed(overrides: list[str], isolated: bool) -> float:
     `--isolate`, the sandbox checked and a decision process started), the mission loaded, its
     components built once, the batches run."""
     t0 = time.perf_counter()
-    iso = isolate.require_sandbox(60) if isolated else None
-    session = load_session("builtin:greedy", overrides)
+    backend = require_sandbox(60) if isolated else IN_PROCESS
+    session = load_session("builtin:greedy", overrides, backend=backend)
     m = session.mission
-    build_once(m, session.registry, iso)     # with iso, its process is reused by the batches
+    build_once(session)          # when isolated, its process is reused by the batches
     units = make_units([m], [fixed_chunks(scenario_ids(m), 100)], executor=SerialExecutor(),
-                       registries=[session.registry], isolate=iso)
+                       registries=[session.registry], backends=[backend])
     run_units(units, SerialExecutor())
     isolate.close_idle()             # as `ata run` does at its end: each run starts its own
     return time.perf_counter() - t0

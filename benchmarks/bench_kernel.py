@@ -18,8 +18,9 @@ from typing import NamedTuple
 from rich.console import Console
 from rich.table import Table
 
-from ata.experiment.runner import BASELINE_MISSION
-from ata.experiment.runner import load_session, run_mission
+from ata.session import BASELINE_MISSION
+from ata.session import load_session
+from ata.experiment.runner import run_mission
 
 CONFIGS = {
     "greedy ITA only": ["components.condition='never'"],

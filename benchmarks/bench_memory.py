@@ -47,7 +47,7 @@ def _child(spec: dict) -> dict:
     """Run one greedy mission here (the child), as bench_kernel.measure does."""
     sys.path.insert(0, str(HERE))
     from bench_kernel import measure   # noqa: E402  (a sibling script, not a package)
-    from ata.experiment.runner import load_session   # noqa: F401  (imports before the base)
+    from ata.session import load_session   # noqa: F401  (imports before the base)
     base = _rss_mib()
     if spec.get("traced"):
         tracemalloc.start()

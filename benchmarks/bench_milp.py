@@ -17,9 +17,9 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from ata.experiment.runner import BASELINE_MISSION
+from ata.session import BASELINE_MISSION
 from ata.core.kernel import Simulation
-from ata.experiment.runner import load_session
+from ata.session import load_session
 from ata.core.state import Observation
 from ata.plugins.policies import milp as M
 

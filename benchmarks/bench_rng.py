@@ -36,7 +36,8 @@ def per_call(batch: int, shapes: list[tuple[int, ...]], repeats: int) -> list[tu
 def share_of_a_run(scenarios: int) -> tuple[float, float, int, int]:
     """(run seconds, seconds drawing, draw calls, draws) of `ata run builtin:greedy` at one
     batch of `scenarios`."""
-    from ata.experiment.runner import load_session, run_mission
+    from ata.session import load_session
+    from ata.experiment.runner import run_mission
     spent = [0.0]
     calls = collections.Counter()
     original = rng_mod.StreamRNG.bits

@@ -33,7 +33,7 @@ from rich.console import Console
 from rich.table import Table
 
 from ata.core.kernel import Simulation, build_component
-from ata.experiment.runner import BASELINE_MISSION, build_trainer, load_session, training_mission_for
+from ata.session import BASELINE_MISSION, build_trainer, load_session, training_mission_for
 from ata.plugins.ata_hrl.components import AttentionITA
 from ata.plugins.ata_hrl.phases.policy import rewards
 

@@ -16,8 +16,9 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from ata.experiment.runner import BASELINE_MISSION
-from ata.experiment.runner import load_session, mean_ci, run_mission
+from ata.session import BASELINE_MISSION
+from ata.session import load_session
+from ata.experiment.runner import mean_ci, run_mission
 
 METHODS = {
     "random": ["components.initial='random'", "components.condition='never'",

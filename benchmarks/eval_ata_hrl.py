@@ -15,7 +15,8 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from ata.experiment.runner import BASELINE_MISSION, load_session, mean_ci, run_mission
+from ata.session import BASELINE_MISSION, load_session
+from ata.experiment.runner import mean_ci, run_mission
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "missions"
 METHODS = {

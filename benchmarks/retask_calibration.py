@@ -20,7 +20,8 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from ata.experiment.runner import BASELINE_MISSION, load_session, run_mission
+from ata.session import BASELINE_MISSION, load_session
+from ata.experiment.runner import run_mission
 
 
 def paired(a: np.ndarray, b: np.ndarray) -> str:

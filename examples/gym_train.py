@@ -59,7 +59,8 @@ except ModuleNotFoundError as exc:
                      "stable-baselines3 sb3-contrib") from None
 
 from ata.runtime.heldout import EVAL_FIRST_SCENARIO
-from ata.experiment.runner import load_session, mean_ci, run_mission
+from ata.session import load_session
+from ata.experiment.runner import mean_ci, run_mission
 from ata.gym import CentralisedVectorEnv
 
 MISSION = Path(__file__).resolve().parent / "missions" / "gym_small_team.toml"

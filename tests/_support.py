@@ -15,7 +15,7 @@ import pytest
 
 from ata import hookimpl
 from ata.core.kernel import Simulation
-from ata.experiment.runner import BASELINE_MISSION, load_session, training_mission_for
+from ata.session import BASELINE_MISSION, load_session, training_mission_for
 from ata.core.state import Allocation
 from ata.model import tables
 from ata.plugins.policies import milp as M
@@ -97,7 +97,7 @@ class Killed(Exception):
 
 def train(session, run_dir, *, resume: bool = False, on_row=None):
     """Build the mission's trainer and run it in run_dir (as `ata train` does); return it."""
-    from ata.experiment.runner import build_trainer
+    from ata.session import build_trainer
     from ata.training import TrainRun
     trainer = build_trainer(session)
     run = TrainRun(run_dir, session.mission.to_toml(), trainer.log_fields, resume=resume,
@@ -110,7 +110,7 @@ def whole_and_killed(session, tmp_path, phase: str, step: str):
     """Train `session` to the end in tmp_path/whole; train it again in tmp_path/broken, killed
     when the log reaches (phase, step); resume the broken run from its folder and return both
     trainers."""
-    from ata.experiment.runner import load_session
+    from ata.session import load_session
 
     whole = train(session, tmp_path / "whole")
 

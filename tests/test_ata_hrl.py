@@ -14,8 +14,7 @@ import torch
 from _support import HRL_TINY as TINY, hrl_session as session, train
 from ata.core.errors import MissionError
 from ata.core.kernel import Simulation, build_component
-from ata.experiment.runner import (BASELINE_MISSION, build_trainer, load_session,
-                             training_mission_for)
+from ata.session import BASELINE_MISSION, build_trainer, load_session, training_mission_for
 from ata.core.state import Allocation
 from ata.model import tables
 from ata.plugins.ata_hrl.components import AttentionITA, AuxReconstructor, CTRPolicy

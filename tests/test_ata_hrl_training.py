@@ -11,8 +11,7 @@ import torch
 from _support import HRL_TINY as TINY, hrl_session as session, train, whole_and_killed
 from ata.core.errors import MissionError
 from ata.core.kernel import Simulation
-from ata.experiment.runner import (BASELINE_MISSION, build_trainer, load_session,
-                                   training_mission_for)
+from ata.session import BASELINE_MISSION, build_trainer, load_session, training_mission_for
 from ata.training import CheckpointError, read_checkpoint
 
 

@@ -10,8 +10,9 @@ import pytest
 
 from ata.core import kernel
 from ata.core.errors import MissionError
-from ata.experiment import published
-from ata.experiment.runner import load_session
+from ata.published import sets as published
+from ata.experiment.reproduce import rerun_sample
+from ata.session import load_session
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "policies" / "nearest_capable.py"
 
@@ -144,7 +145,7 @@ def test_pairing_refuses_other_scenarios_or_other_reference_code(published_fixtu
 
 def test_rerun_sample_finds_the_published_rows_identical_and_names_a_changed_one(
         published_fixture):
-    assert published.rerun_sample(published_fixture, per_cell=2) == []
+    assert rerun_sample(published_fixture, per_cell=2) == []
     rows = gzip.decompress((published_fixture / "rows.csv.gz").read_bytes()).decode()
     lines = rows.splitlines()
     header = lines[0].split(",")
@@ -158,7 +159,7 @@ def test_rerun_sample_finds_the_published_rows_identical_and_names_a_changed_one
         published.read_published(published_fixture)
     manifest["rows_sha256"] = published.hashlib.sha256(data).hexdigest()
     (published_fixture / "manifest.json").write_text(json.dumps(manifest))
-    found = published.rerun_sample(published_fixture, per_cell=1, methods=[first[0]])
+    found = rerun_sample(published_fixture, per_cell=1, methods=[first[0]])
     assert len(found) == 1 and "score 12345.0 published" in found[0], found
     from ata.testing import check_published_rows
     with pytest.raises(AssertionError, match="score 12345.0 published"):

@@ -14,7 +14,7 @@ import pytest
 
 from _support import assert_user_error, flat
 from ata import __version__
-from ata.experiment import runner as runner_mod
+from ata.session import load_session
 from ata.core.mission import ComponentSlots, MissionSettings
 from ata.core.registry import BUILTIN_PLUGINS, collect_components, get_plugin_manager
 
@@ -92,7 +92,7 @@ def test_resolved_mission_reloads_with_every_default_filled_in(cli, tiny, tmp_pa
     assert resolved["human"]["fatigue_floor"] == 0.4
 
     # it loads and validates as a mission in its own right, to the same mission
-    session = runner_mod.load_session(str(resolved_path))
+    session = load_session(str(resolved_path))
     assert session.mission.resolved() == resolved
     for name, st in session.mission.component_settings.items():
         expected = ({f.name for f in dataclasses.fields(st) if getattr(st, f.name) is not None}
@@ -378,10 +378,11 @@ def test_an_output_folder_under_a_file_is_refused_before_any_work(cli, tiny, tmp
 
 
 def test_two_runs_in_the_same_second_get_two_folders(tiny, tmp_path, monkeypatch):
-    from ata.experiment import folders, runner
+    from ata.experiment import runner
+    from ata.runtime import folders
     monkeypatch.setenv("ATA_RUNS", str(tmp_path))
     monkeypatch.setattr(folders.time, "strftime", lambda fmt: "20260101-000000")
-    mission = runner.load_session(str(tiny)).mission
+    mission = load_session(str(tiny)).mission
     first, second = runner.default_out_dir(mission), runner.default_out_dir(mission)
     assert first.name == "tiny-20260101-000000"
     assert second.name == "tiny-20260101-000000-2"
@@ -427,7 +428,8 @@ def test_run_and_check_take_a_built_in_mission_by_name(cli, tmp_path):
 
 
 def test_a_long_run_is_saved_in_batches_of_at_most_100_scenarios():
-    from ata.experiment.runner import BASELINE_MISSION, RUN_CHUNK, load_session, mission_plan
+    from ata.session import BASELINE_MISSION, load_session
+    from ata.experiment.runner import RUN_CHUNK, mission_plan
     assert RUN_CHUNK == 100
     session = load_session(str(BASELINE_MISSION), ["mission.scenarios=250"])
     plan = mission_plan(session, 1)

@@ -17,10 +17,10 @@ from typer.testing import CliRunner
 from _support import assert_user_error, flat
 from ata.cli import app
 from ata.core.errors import MissionError
-from ata.experiment import compare as cmp
-from ata.experiment import report as rep
+from ata.results import compare as cmp
+from ata.results import report as rep
 from ata.experiment.evaluate import CORE_COLUMNS
-from ata.experiment.results import bootstrap_ci, read_results
+from ata.results.rows import bootstrap_ci, read_results
 
 HEADER = CORE_COLUMNS + ["expected_score"]
 

@@ -14,7 +14,7 @@ import pytest
 import ata
 import decoder_reference as ref
 from ata.core.kernel import Simulation
-from ata.experiment.runner import load_session
+from ata.session import load_session
 from ata.model import greedy_score, scalar, tables
 from ata.plugins.ata_hrl.decoder import Decoder
 

@@ -46,7 +46,7 @@ def test_readme_commands_match_ci():
 def test_example_missions_validate():
     from ata.experiment.evaluate import plan
     from ata.core.mission import read_toml
-    from ata.experiment.runner import load_session
+    from ata.session import load_session
     suites = 0
     for path in sorted((ROOT / "examples").rglob("*.toml")):
         if path.name == "pyproject.toml" or "third_party" in str(path):

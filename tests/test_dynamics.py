@@ -426,7 +426,8 @@ def test_a_human_never_starts_navigating_a_robot_that_has_failed():
 def test_expected_score_is_the_score_without_the_outcome_draws():
     # per scenario, expected_score sums each classification's expected points; over scenarios it
     # is an unbiased estimate of the score (the draws change nothing else), with less spread
-    from ata.experiment.runner import BASELINE_MISSION, load_session, run_mission
+    from ata.session import BASELINE_MISSION, load_session
+    from ata.experiment.runner import run_mission
     r = run_mission(load_session(str(BASELINE_MISSION), ["mission.scenarios=200",
                                                          "mission.batch_size=200"]))
     expected, score = r.metrics["expected_score"], r.total

@@ -14,13 +14,14 @@ import pytest
 
 from _support import flat, tiny_data
 from ata.experiment import evaluate as ev
-from ata.experiment.published import DROPPED
+from ata.published.sets import DROPPED
 from ata.runtime.cache import cache_dir, run_cache
 from ata.core.errors import MissionError
 from ata.runtime.executors import ProcessExecutor, SerialExecutor
 from ata import hookimpl
 from ata.core.kernel import Simulation
-from ata.experiment.runner import BASELINE_MISSION, load_session, run_mission
+from ata.session import BASELINE_MISSION, load_session
+from ata.experiment.runner import run_mission
 from ata.plugins.policies import milp as M
 
 ROOT = Path(__file__).resolve().parent.parent

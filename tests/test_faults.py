@@ -17,7 +17,9 @@ import numpy as np
 import pytest
 
 from _support import assert_user_error, flat, small_mission
-from ata.experiment import folders, runlog, runner
+from ata.experiment import runlog, runner, training
+from ata.session import load_session
+from ata.runtime import folders
 from ata.model import greedy_planner
 from ata.runtime import memory
 
@@ -177,7 +179,7 @@ def test_a_mission_named_as_a_path_runs_in_runs(cli, small, tmp_path, monkeypatc
                                                       "x-20260101-000000"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["runs", "small.toml"]
     # the folder `ata train` picks (cli's call) goes through the same naming
-    session = runner.load_session(str(small), ['mission.name="../../x"'])
+    session = load_session(str(small), ['mission.name="../../x"'])
     assert runner.default_out_dir(session.mission, prefix="train-") == \
         root / "train-_x-20260101-000000"
 
@@ -246,7 +248,7 @@ def test_an_interrupted_training_says_what_was_saved(cli, tmp_path, monkeypatch)
                 os.utime(run.dir / "checkpoint.pt", (1767225600, 1767225600))
             raise KeyboardInterrupt
 
-    monkeypatch.setattr(runner, "build_trainer", lambda session: Trainer())
+    monkeypatch.setattr(training, "build_trainer", lambda session: Trainer())
     saved = False
     result = cli("train", "--plugins", "ita", "-q", "-o", out)
     assert result.exit_code == 130
@@ -292,7 +294,7 @@ def test_a_ctrl_c_lost_in_a_training_step_still_stops_the_training(cli, tmp_path
                 run.log({"phase": "ita", "step": step})
             return {"wall_s": 0.0, "best_eval": 0.0}
 
-    monkeypatch.setattr(runner, "build_trainer", lambda session: Trainer())
+    monkeypatch.setattr(training, "build_trainer", lambda session: Trainer())
     out = tmp_path / "train"
     result = cli("train", "--plugins", "ita", "-q", "-o", out)
     assert result.exit_code == 130, result.output
@@ -318,7 +320,7 @@ def test_the_planner_estimate():
 
 
 def test_a_batch_too_big_for_memory_is_cut_smaller(cli, small, whole, tmp_path, monkeypatch):
-    session = runner.load_session(str(small))
+    session = load_session(str(small))
     limit = memory.batch_peak(session.mission, 2)
     monkeypatch.setattr(memory, "memory_limit", lambda: limit)
     out = tmp_path / "out"
@@ -332,7 +334,7 @@ def test_a_batch_too_big_for_memory_is_cut_smaller(cli, small, whole, tmp_path, 
 
 def test_a_mission_too_big_for_memory_is_refused_before_any_work(cli, small, tmp_path,
                                                                  monkeypatch):
-    session = runner.load_session(str(small))
+    session = load_session(str(small))
     limit = memory.batch_peak(session.mission, 1) - 1
     monkeypatch.setattr(memory, "memory_limit", lambda: limit)
     out = tmp_path / "out"
@@ -346,7 +348,7 @@ def test_a_mission_too_big_for_memory_is_refused_before_any_work(cli, small, tmp
 
 
 def test_eval_units_too_big_for_memory_are_refused(cli, small, tmp_path, monkeypatch):
-    session = runner.load_session(str(small))
+    session = load_session(str(small))
     limit = memory.batch_peak(session.mission, 2)
     monkeypatch.setattr(memory, "memory_limit", lambda: limit)
     result = cli("eval", small, "-e", "serial", "-n", 6, "--chunk-size", 6, "--no-cache",
@@ -374,7 +376,7 @@ def test_animate_writes_one_frame_per_epoch(cli, small, tmp_path):
     with Image.open(out / "show_map.gif") as gif:
         assert (gif.format, gif.n_frames, gif.size) == ("GIF", 30, (640, 512))
         assert gif.info["duration"] == 400 and gif.info["loop"] == 0
-    session = runner.load_session(str(small))
+    session = load_session(str(small))
     ep = replay(session.mission, session.registry, 2)
     assert (poi_states(ep, 0.0) == UNVISITED).all()
     assert np.array_equal(poi_states(ep, ep.horizon_s), ep.outcome)

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from _support import assert_user_error, flat, small_mission
-from ata.experiment import folders
+from ata.runtime import folders
 
 SMALL = small_mission(4)
 

@@ -14,8 +14,9 @@ import numpy as np
 import pytest
 
 from _support import assert_user_error, flat, small_mission
-from ata.experiment import folders, terminal
-from ata.experiment.results import bootstrap_ci
+from ata.runtime import folders
+from ata.cli import terminal
+from ata.results.rows import bootstrap_ci
 
 SMALL = small_mission(2)
 
@@ -50,7 +51,7 @@ def test_resamples_are_bounded_and_the_bootstrap_memory_is_not(cli, small, tmp_p
     assert "--resamples" in result.output
     values = np.arange(50.0)
     # drawn in blocks: the same interval as one matrix
-    from ata.experiment import results
+    from ata.results import rows as results
     whole = bootstrap_ci(values, 3000)
     old = results.BOOTSTRAP_BLOCK
     try:
@@ -173,10 +174,10 @@ def test_a_lazy_plugin_that_registers_nothing_is_named(cli, small, tmp_path, mon
 def test_a_bad_milp_cache_entry_is_named_and_solved_again(small, tmp_path):
     import json
 
-    from ata.experiment import runner
+    from ata.session import load_session
     from ata.experiment.units import run_batch
     from ata.runtime.cache import run_cache
-    session = runner.load_session(str(small), ["components.initial='milp'",
+    session = load_session(str(small), ["components.initial='milp'",
                                                "components.condition='never'"])
     with run_cache(tmp_path / "cache"):
         first = run_batch(session.mission, session.registry, np.arange(1))

@@ -9,6 +9,7 @@ import pytest
 
 from _support import assert_user_error
 from ata.experiment import runner
+from ata.session import load_session
 from ata.runtime import memory
 
 TEAM = """\
@@ -35,10 +36,10 @@ def mission(tmp_path, initial="greedy", humans=2, robots=3, tasks=10, scenarios=
 
 def test_the_components_are_asked_once_built(tmp_path):
     pytest.importorskip("torch")
-    session = runner.load_session(str(mission(tmp_path, "attention", 6, 8, 10_000, 10)))
+    session = load_session(str(mission(tmp_path, "attention", 6, 8, 10_000, 10)))
     m = session.mission
     default = memory.batch_peak(m, 10)
-    runner.build_once(m, session.registry)
+    runner.build_once(session)
     tokens = 10_000 + 6 + 8
     # the encoder's (batch, heads, tokens, tokens) scores: 16 GB was what killed the run
     assert memory.batch_peak(m, 10) - default >= 10 * 4 * 4 * tokens * tokens
@@ -48,10 +49,10 @@ def test_the_components_are_asked_once_built(tmp_path):
 def test_ata_hrl_too_large_for_memory_is_refused_before_any_work(cli, tmp_path, monkeypatch):
     pytest.importorskip("torch")
     path = mission(tmp_path, "attention", 6, 8, 300, 2)
-    session = runner.load_session(str(path))
-    runner.build_once(session.mission, session.registry)
+    session = load_session(str(path))
+    runner.build_once(session)
     limit = memory.batch_peak(session.mission, 1) - 1
-    assert limit > 2 * memory.batch_peak(runner.load_session(str(path)).mission, 2)  # default
+    assert limit > 2 * memory.batch_peak(load_session(str(path)).mission, 2)  # default
     monkeypatch.setattr(memory, "memory_limit", lambda: limit)
     out = tmp_path / "out"
     result = cli("run", path, "-q", "-o", out)
@@ -69,7 +70,7 @@ def test_itamilp_at_a_huge_team_is_refused_not_a_memory_error(cli, tmp_path):
 
 def test_each_worker_is_counted(cli, tmp_path, monkeypatch):
     path = mission(tmp_path)
-    session = runner.load_session(str(path))
+    session = load_session(str(path))
     m = session.mission
     assert memory.run_peak(m, 1, 16) >= 16 * memory.WORKER_BYTES
     assert memory.run_peak(m, 1, 1) == memory.batch_peak(m, 1)          # serial: none
@@ -84,8 +85,8 @@ def test_each_worker_is_counted(cli, tmp_path, monkeypatch):
 def test_eval_counts_the_components(cli, tmp_path, monkeypatch):
     pytest.importorskip("torch")
     path = mission(tmp_path, "attention", 6, 8, 300, 2)
-    session = runner.load_session(str(path))
-    runner.build_once(session.mission, session.registry)
+    session = load_session(str(path))
+    runner.build_once(session)
     limit = memory.batch_peak(session.mission, 2) - 1
     monkeypatch.setattr(memory, "memory_limit", lambda: limit)
     result = cli("eval", path, "-e", "serial", "-n", 2, "--chunk-size", 2, "--no-cache", "-q",
@@ -99,7 +100,7 @@ def test_the_gym_adapter_refuses_num_envs_too_large_for_memory(tmp_path, monkeyp
     import ata.gym
     from ata.core.errors import MissionError
     path = mission(tmp_path)
-    session = runner.load_session(str(path))
+    session = load_session(str(path))
     monkeypatch.setattr(memory, "memory_limit",
                         lambda: memory.batch_peak(session.mission, 4))
     with pytest.raises(MissionError, match="num_envs: 64 scenarios of 'big' stepped together "

@@ -7,7 +7,7 @@ import numpy as np
 
 from ata.core.kernel import Simulation
 from ata.core.state import Observation
-from ata.experiment.runner import BASELINE_MISSION, load_session
+from ata.session import BASELINE_MISSION, load_session
 from ata.model import tables
 from ata.model.fatigue import belief_from, individual
 from ata.model.team import HumanConstants

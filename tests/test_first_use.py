@@ -17,7 +17,7 @@ from typer.testing import CliRunner
 from ata import hookimpl
 from ata.cli import app
 from ata.core.state import Allocation
-from ata.experiment.runner import BASELINE_MISSION
+from ata.session import BASELINE_MISSION
 from ata.plugins import humans, robots, tasks
 from ata.testing import check_component
 
@@ -142,7 +142,7 @@ def test_every_shared_column_is_defined():
 
 
 def test_the_working_column_is_one_until_the_robot_fails():
-    from ata.experiment.runner import load_session
+    from ata.session import load_session
     from ata.core.kernel import Simulation
     session = load_session(str(BASELINE_MISSION), [
         "mission.uncertainty='custom'", "mission.fatigue_variance=0.0",

@@ -19,7 +19,8 @@ pytest.importorskip("pettingzoo")
 
 import ata.gym  # noqa: E402  (after the skips: it needs gymnasium)
 from ata.core.kernel import Simulation  # noqa: E402
-from ata.experiment.runner import load_session, run_mission  # noqa: E402
+from ata.session import load_session
+from ata.experiment.runner import run_mission  # noqa: E402
 from ata.gym import sample_masked  # noqa: E402
 
 H, R, P, T = 2, 3, 6, 10

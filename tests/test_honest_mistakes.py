@@ -16,7 +16,7 @@ from ata.core.errors import ContractError
 from ata.core.kernel import Simulation
 from ata.core.rng import BatchRNG
 from ata.core.state import Allocation, EpisodeOutcome, SimState, read_only
-from ata.experiment.runner import BASELINE_MISSION, load_session
+from ata.session import BASELINE_MISSION, load_session
 from ata.plugins.humans import HumanModel
 from ata.plugins.policies.greedy import GreedyPolicy
 from ata.testing import check_component

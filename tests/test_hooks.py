@@ -20,7 +20,8 @@ from ata.core.errors import ContractError, MissionError
 from ata.core.kernel import Simulation
 from ata.core.mission import validate
 from ata.core.registry import Register, collect_components, get_plugin_manager
-from ata.experiment.runner import Session, run_mission
+from ata.session import Session
+from ata.experiment.runner import run_mission
 from ata.core.state import Allocation
 from ata.model import fatigue
 

@@ -17,8 +17,9 @@ import numpy as np
 import pytest
 
 from ata.core.errors import ContractError, MissionError
-from ata.experiment import isolate
-from ata.experiment.runner import load_session
+from ata.isolation import Isolated, require_sandbox
+from ata.isolation import process as isolate
+from ata.session import load_session
 from ata.experiment.units import run_batch, torch_one_thread
 from ata.runtime import frames, sandbox
 
@@ -56,17 +57,17 @@ def differ(a: dict, b: dict) -> bool:
     return any(not np.array_equal(a[k], b[k]) for k in a)
 
 
-def both(session, iso: isolate.Isolation, ids=np.arange(4)) -> tuple[dict, dict]:
+def both(session, iso: Isolated, ids=np.arange(4)) -> tuple[dict, dict]:
     with torch_one_thread():
         inside = run_batch(session.mission, session.registry, ids)
-        apart = run_batch(session.mission, session.registry, ids, isolate=iso)
+        apart = run_batch(session.mission, session.registry, ids, backend=iso)
     return inside, apart
 
 
 # -- (a) the same results as in-process ----------------------------------------------------------
 @needs_sandbox
 def test_isolated_greedy_gives_the_in_process_results():
-    inside, apart = both(load_session("builtin:greedy", SHORT), isolate.require_sandbox(60))
+    inside, apart = both(load_session("builtin:greedy", SHORT), require_sandbox(60))
     assert_same(inside, apart)
     np.testing.assert_array_equal(apart[f"m:{isolate.TIMEOUT_COLUMN}"], 0.0)
 
@@ -85,7 +86,7 @@ def test_isolated_ata_hrl_gives_the_in_process_results(tmp_path, monkeypatch):
                                                *[f"{c}.checkpoint='mine.pt'"
                                                  for c in ("attention", "ctr", "aux")]])
     assert session.mission.slots.reconstructors != ["identity"]   # the aux reconstructor too
-    inside, apart = both(session, isolate.require_sandbox(120), np.arange(3))
+    inside, apart = both(session, require_sandbox(120), np.arange(3))
     assert_same(inside, apart)
 
 
@@ -100,12 +101,12 @@ def peek_session(peekers, policy: str, *extra: str):
                                     "peek_env", "peek_files"])
 def test_a_peeking_policy_finds_nothing_in_the_sandbox(peekers, policy, monkeypatch):
     monkeypatch.setenv(peekers.SECRET_ENV, "the host's secret")
-    iso = isolate.require_sandbox(60)
+    iso = require_sandbox(60)
     honest = peek_session(peekers, "peek_none")
     peeker = peek_session(peekers, policy)
     ids = np.arange(4)
-    assert_same(run_batch(honest.mission, honest.registry, ids, isolate=iso),
-                run_batch(peeker.mission, peeker.registry, ids, isolate=iso))
+    assert_same(run_batch(honest.mission, honest.registry, ids, backend=iso),
+                run_batch(peeker.mission, peeker.registry, ids, backend=iso))
 
 
 @pytest.mark.parametrize("policy", ["peek_gc", "peek_frames", "peek_env"])
@@ -129,9 +130,9 @@ def test_the_sandbox_cannot_read_a_secret_seed(peekers, tmp_path, monkeypatch):
     honest = load_session(str(mission), ["components.initial='peek_none'"], extra=(peekers,))
     peeker = load_session(str(mission), ["components.initial='peek_env'"], extra=(peekers,))
     assert honest.mission.secret_seed
-    iso, ids = isolate.require_sandbox(60), np.arange(4)
-    assert_same(run_batch(honest.mission, honest.registry, ids, isolate=iso),
-                run_batch(peeker.mission, peeker.registry, ids, isolate=iso))
+    iso, ids = require_sandbox(60), np.arange(4)
+    assert_same(run_batch(honest.mission, honest.registry, ids, backend=iso),
+                run_batch(peeker.mission, peeker.registry, ids, backend=iso))
     # in the host's process, the same policy reads it
     assert differ(run_batch(honest.mission, honest.registry, ids),
                   run_batch(peeker.mission, peeker.registry, ids))
@@ -145,7 +146,7 @@ def test_a_reallocation_past_the_time_limit_keeps_the_allocation_and_is_counted(
                                               "sleepy.seconds=5.0", "sleepy.at_epoch=2"],
                            extra=(peekers,))
     out = run_batch(session.mission, session.registry, np.arange(4),
-                    isolate=isolate.require_sandbox(0.5))
+                    backend=require_sandbox(0.5))
     np.testing.assert_array_equal(out[f"m:{isolate.TIMEOUT_COLUMN}"], 1.0)
     assert any("decision time limit of 0.5 s was exceeded" in w for w in out["warnings"])
     # epoch 1 reallocated (always), then the process was stopped at epoch 2: none after
@@ -160,7 +161,7 @@ def test_an_initial_allocation_past_the_time_limit_fails_the_batch(peekers):
     with pytest.raises(isolate.DecisionTimeout, match=r"initial policy 'sleepy' took longer "
                        r"than the decision time limit of 0.5 s .*the batch fails"):
         run_batch(session.mission, session.registry, np.arange(4),
-                  isolate=isolate.require_sandbox(0.5))
+                  backend=require_sandbox(0.5))
 
 
 @needs_sandbox
@@ -171,7 +172,7 @@ def test_an_error_in_the_decision_process_comes_back_as_text(peekers, monkeypatc
     with pytest.raises(isolate.ChildFailed, match="ValueError: sleep length must be "
                                                   "non-negative"):
         run_batch(session.mission, session.registry, np.arange(4),
-                  isolate=isolate.require_sandbox(10))
+                  backend=require_sandbox(10))
 
 
 # -- (e) no sandbox: one line, exit 2 ------------------------------------------------------------

@@ -17,8 +17,9 @@ import numpy as np
 import pytest
 
 from ata.core.errors import MissionError
-from ata.experiment import isolate
-from ata.experiment.runner import load_session
+from ata.isolation import require_sandbox
+from ata.isolation import process as isolate
+from ata.session import load_session
 from ata.experiment.units import Unit, run_batch, run_unit, torch_one_thread
 from ata.runtime import sandbox
 
@@ -87,16 +88,16 @@ def installed(tmp_path, monkeypatch):
 
 def test_the_host_never_imports_an_installed_method(installed):
     module, name, marker = installed
-    iso = isolate.require_sandbox(60)
+    iso = require_sandbox(60)
     over = [*SHORT, f"components.initial='{name}'", f"{name}.shift=2"]
-    session = load_session("builtin:greedy", over, isolate=iso)
+    session = load_session("builtin:greedy", over, backend=iso)
     # its settings were validated apart, and the host records them as any component's
     assert f"[{name}]\nshift = 2" in session.mission.to_toml()
     assert session.registry.get("policy", name, "").dist == f"{module} 0.1"
     with torch_one_thread():
-        apart = run_batch(session.mission, session.registry, np.arange(3), isolate=iso)
+        apart = run_batch(session.mission, session.registry, np.arange(3), backend=iso)
         # a worker process stands the method in the same way, importing none of it
-        unit = run_unit(Unit(0, session.mission, np.arange(3), parallel=True, isolate=iso))
+        unit = run_unit(Unit(0, session.mission, np.arange(3), parallel=True, backend=iso))
     assert module not in sys.modules and marker not in os.environ
     inside_session = load_session("builtin:greedy", over)
     assert module in sys.modules and marker in os.environ    # the check above can fail
@@ -112,27 +113,27 @@ def test_the_host_never_imports_an_installed_method(installed):
 
 def test_a_bad_setting_of_an_installed_method_is_named_from_the_sandbox(installed):
     module, name, marker = installed
-    iso = isolate.require_sandbox(60)
+    iso = require_sandbox(60)
     with pytest.raises(MissionError, match=rf"\[{name}\].*nope.*unknown key"):
         load_session("builtin:greedy", [*SHORT, f"components.initial='{name}'",
-                                        f"{name}.nope=1"], isolate=iso)
+                                        f"{name}.nope=1"], backend=iso)
     assert module not in sys.modules and marker not in os.environ
 
 
 def test_a_built_in_method_beside_an_installed_package_never_imports_it(installed):
     module, name, marker = installed
-    iso = isolate.require_sandbox(60)
-    session = load_session("builtin:greedy", SHORT, isolate=iso)
+    iso = require_sandbox(60)
+    session = load_session("builtin:greedy", SHORT, backend=iso)
     with torch_one_thread():
-        run_unit(Unit(0, session.mission, np.arange(3), parallel=True, isolate=iso))
+        run_unit(Unit(0, session.mission, np.arange(3), parallel=True, backend=iso))
     assert module not in sys.modules and marker not in os.environ
 
 
 def test_an_undeclared_world_component_is_found_and_loaded_as_the_world(installed):
     module, name, marker = installed
-    iso = isolate.require_sandbox(60)
+    iso = require_sandbox(60)
     session = load_session("builtin:greedy", [*SHORT, f"components.injectors=['{name}_noise']"],
-                           isolate=iso)
+                           backend=iso)
     # the world's code runs in the world's process: found by importing each package alone in
     # a sandbox, then loaded here
     assert session.registry.get("injector", f"{name}_noise", "").dist == f"{module} 0.1"
@@ -141,13 +142,13 @@ def test_an_undeclared_world_component_is_found_and_loaded_as_the_world(installe
 
 def test_a_method_whose_package_also_gives_the_world_is_refused(installed):
     module, name, marker = installed
-    iso = isolate.require_sandbox(60)
+    iso = require_sandbox(60)
     with pytest.raises(MissionError, match=rf"cannot keep policy '{name}' apart"):
         load_session("builtin:greedy", [*SHORT, f"components.injectors=['{name}_noise']",
-                                        f"components.initial='{name}'"], isolate=iso)
+                                        f"components.initial='{name}'"], backend=iso)
     with pytest.raises(MissionError, match=r"no installed package provides it.*ata\.components"):
         load_session("builtin:greedy", [*SHORT, "components.injectors=['nowhere_noise']"],
-                     isolate=iso)
+                     backend=iso)
 
 
 # -- a method in a file of its own, named by reference ---------------------------------------------
@@ -162,9 +163,9 @@ def test_a_method_in_a_file_runs_apart_and_the_host_never_loads_it(tmp_path, mon
     policy.write_text(f'import os\nos.environ["{marker}"] = "loaded"\n' + code)
     mission = tmp_path / "mine.toml"
     mission.write_text((EXAMPLE / "nearest_capable.toml").read_text())
-    iso = isolate.require_sandbox(60)
+    iso = require_sandbox(60)
     loaded = set(sys.modules)
-    session = load_session(str(mission), SHORT + ["nearest_capable.any_type=true"], isolate=iso)
+    session = load_session(str(mission), SHORT + ["nearest_capable.any_type=true"], backend=iso)
     resolved = session.mission.to_toml()
     assert 'initial = "nearest_capable"' in resolved and "any_type = true" in resolved
     assert f'source = "{policy.resolve()}:NearestCapable"' in resolved
@@ -172,14 +173,14 @@ def test_a_method_in_a_file_runs_apart_and_the_host_never_loads_it(tmp_path, mon
     assert f'sha256 = "{digest}"' in resolved
     assert session.code()["policy nearest_capable"] == digest
     with torch_one_thread():
-        apart = run_batch(session.mission, session.registry, np.arange(3), isolate=iso)
-        unit = run_unit(Unit(0, session.mission, np.arange(3), parallel=True, isolate=iso))
+        apart = run_batch(session.mission, session.registry, np.arange(3), backend=iso)
+        unit = run_unit(Unit(0, session.mission, np.arange(3), parallel=True, backend=iso))
     assert marker not in os.environ
     assert not [m for m in set(sys.modules) - loaded if "nearest_capable" in m]
     # the resolved mission runs apart again, and refuses the file once it has changed
     again = tmp_path / "resolved.toml"
     again.write_text(resolved)
-    assert load_session(str(again), isolate=iso).mission.to_toml() == resolved
+    assert load_session(str(again), backend=iso).mission.to_toml() == resolved
     inside_session = load_session(str(mission), SHORT + ["nearest_capable.any_type=true"])
     assert marker in os.environ                     # the check above can fail
     with torch_one_thread():
@@ -190,4 +191,4 @@ def test_a_method_in_a_file_runs_apart_and_the_host_never_loads_it(tmp_path, mon
         np.testing.assert_array_equal(np.asarray(unit[key]), np.asarray(apart[key]), key)
     policy.write_text(policy.read_text() + "\n# edited\n")
     with pytest.raises(MissionError, match="has changed since this mission was resolved"):
-        load_session(str(again), isolate=iso)
+        load_session(str(again), backend=iso)

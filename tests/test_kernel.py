@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from _support import assert_trace
-from ata.experiment.runner import BASELINE_MISSION
+from ata.session import BASELINE_MISSION
 from ata import hookimpl
 from ata.core.errors import ContractError
 from ata.core.kernel import Simulation
-from ata.experiment.runner import load_session
+from ata.session import load_session
 from ata.core.state import Allocation
 
 BASE = 1000.0

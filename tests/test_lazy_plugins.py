@@ -20,6 +20,7 @@ from ata.core.mission import read_toml
 from ata.core.registry import (Register, collect_components, declared_components,
                                get_plugin_manager, providers)
 from ata.experiment import runner
+from ata.session import Session, load_session, training_mission_for
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = ROOT / "examples" / "missions"
@@ -33,7 +34,7 @@ def read_rows(run_dir: Path) -> list[dict]:
         return [{k: v for k, v in r.items() if "wall" not in k} for r in csv.DictReader(f)]
 
 
-def rows(session: runner.Session, workers: int = 1) -> list[dict]:
+def rows(session: Session, workers: int = 1) -> list[dict]:
     result = runner.run_mission(session, workers=workers)
     return [{k: v for k, v in r.items() if "wall" not in k} for r in result.rows()]
 
@@ -83,16 +84,16 @@ def test_a_registry_loads_a_named_component_on_demand():
 ])
 def test_a_mission_without_plugins_runs_as_with_them(mission, plugins, loaded):
     path = str(EXAMPLES / f"{mission}.toml")
-    lazy = runner.load_session(path, SHORT)
+    lazy = load_session(path, SHORT)
     # the resolved mission names the plugins its components loaded, so that it reads back alone
     assert lazy.mission.settings.plugins == loaded
-    named = runner.load_session(path, SHORT, plugins.split(","))
+    named = load_session(path, SHORT, plugins.split(","))
     assert named.mission.settings.plugins == plugins.split(",")
     assert rows(lazy) == rows(named)
 
 
 def test_worker_processes_load_what_the_mission_named():
-    session = runner.load_session(str(EXAMPLES / "tr_pomdp_a.toml"),
+    session = load_session(str(EXAMPLES / "tr_pomdp_a.toml"),
                                   [*SHORT, "mission.batch_size=1"])
     assert rows(session, workers=2) == rows(session)
 
@@ -133,9 +134,9 @@ def test_the_promised_train_plugins_pick_their_missions():
                 "ita": "train_ita.toml", "trp": "train_tr_pomdp.toml",
                 "ita,trp": "train_atrl_tr.toml"}
     for plugins, name in expected.items():
-        assert runner.training_mission_for(plugins.split(",")).name == name
+        assert training_mission_for(plugins.split(",")).name == name
     with pytest.raises(MissionError, match="no built-in training mission for ctr,ita,trp"):
-        runner.training_mission_for(["trp", "ctr"])
+        training_mission_for(["trp", "ctr"])
 
 
 # --- unknown names -------------------------------------------------------------------------------
@@ -211,7 +212,7 @@ def test_a_third_party_declaration_is_honoured(lazy_package, tmp_path, cli):
     mission = tmp_path / "m.toml"
     mission.write_text('[mission]\nscenarios = 4\nbatch_size = 2\n\n[components]\n'
                        'initial = "to_robot_0"\ncondition = "never"\n', encoding="utf-8")
-    session = runner.load_session(str(mission))
+    session = load_session(str(mission))
     info = session.registry.get("policy", "to_robot_0", "test")
     assert (info.plugin, info.dist) == ("ata_lazy", "ata-lazy 0.2.0")
     # no optional name to record: the resolved mission loads it on demand again

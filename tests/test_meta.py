@@ -170,7 +170,7 @@ class Reference(Counter):
 
 def test_the_kernel_calls_every_phase_hook_as_often_as_it_says():
     from ata.core.kernel import Simulation
-    from ata.experiment.runner import BASELINE_MISSION, load_session
+    from ata.session import BASELINE_MISSION, load_session
 
     session = load_session(str(BASELINE_MISSION), [
         "mission.setting='custom'", "mission.humans=2", "mission.robots=2", "mission.tasks=6",

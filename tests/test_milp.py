@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 from _support import tiny_data
-from ata.experiment.runner import BASELINE_MISSION
+from ata.session import BASELINE_MISSION
 from ata.core.kernel import Simulation
-from ata.experiment.runner import load_session, run_mission
+from ata.session import load_session
+from ata.experiment.runner import run_mission
 from ata.core.state import Observation
 from ata.model import tables
 from ata.plugins.policies import milp as M

@@ -11,7 +11,7 @@ from ata import hookimpl
 from ata.core.errors import ContractError
 from ata.core.kernel import Simulation
 from ata.core.state import Channel
-from ata.experiment.runner import BASELINE_MISSION, load_session
+from ata.session import BASELINE_MISSION, load_session
 from ata.model.retask import RetaskCost, retask_cost
 from ata.model.team import HumanConstants, RobotConstants
 from ata.plugins.humans import HumanModel

@@ -21,9 +21,9 @@ from ata.core.rng import BatchRNG, StreamRNG, decision_rng
 from ata.core.state import DecisionView
 from ata.model.team import HumanConstants, RobotConstants
 from ata.experiment import evaluate as ev
-from ata.experiment import results as rep
+from ata.results import rows as rep
 from ata.runtime.executors import SerialExecutor
-from ata.experiment.runner import BASELINE_MISSION, load_session
+from ata.session import BASELINE_MISSION, load_session
 from ata.plugins.policies.greedy import GreedyPolicy
 
 SEED = 8_675_309_123_456_789

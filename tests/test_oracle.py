@@ -7,11 +7,12 @@ import pytest
 from ata import hookimpl
 from ata.core.errors import ContractError
 from ata.core.kernel import Simulation
-from ata.experiment.compare import compare
-from ata.experiment.report import summarize, table_rows
-from ata.experiment.results_md import results_markdown
-from ata.experiment.results import read_results
-from ata.experiment.runner import BASELINE_MISSION, load_session, run_mission, write_run
+from ata.results.compare import compare
+from ata.results.report import summarize, table_rows
+from ata.results.markdown import results_markdown
+from ata.results.rows import read_results
+from ata.session import BASELINE_MISSION, load_session
+from ata.experiment.runner import run_mission, write_run
 from ata.model import fatigue
 from ata.plugins.reconstructors import OracleReconstructor
 from ata.testing import check_component

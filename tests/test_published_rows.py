@@ -3,7 +3,7 @@ this code makes: a sample of them, every method and every cell, rerun here is id
 
 import pytest
 
-from ata.experiment.published import PUBLISHED, read_published
+from ata.published.sets import PUBLISHED, read_published
 from ata.testing import check_published_rows
 
 _, MANIFEST, _ = read_published("published")
@@ -34,7 +34,7 @@ def test_two_scenarios_of_every_method_and_cell_rerun_are_identical():
 
 
 def test_each_cell_records_the_weights_it_read_and_they_are_the_installed_ones():
-    from ata.experiment.published import mission_inputs
+    from ata.published.sets import mission_inputs
     for method, entry in MANIFEST["methods"].items():
         for cell, info in entry["cells"].items():
             assert mission_inputs(info["mission"]) == info["inputs"], (method, cell)

@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from _support import flat
-from ata.experiment import curves, results
-from ata.experiment import report as rep
+from ata.results import curves
+from ata.results import rows as results
+from ata.results import report as rep
 from ata.experiment.evaluate import CORE_COLUMNS
 from ata.experiment.runlog import write_csv
 from ata.core.errors import MissionError

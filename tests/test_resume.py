@@ -189,7 +189,7 @@ def test_a_stopped_process_pool_leaves_no_thread_behind():
 
 
 def ata_run(out: Path, *extra: str) -> subprocess.Popen:
-    from ata.experiment.runner import BASELINE_MISSION   # greedy, on-event reallocation
+    from ata.session import BASELINE_MISSION   # greedy, on-event reallocation
     return subprocess.Popen([sys.executable, "-c", "from ata.cli import app; app()", "run",
                              str(BASELINE_MISSION), "--set", "mission.scenarios=24",
                              "--set", "mission.batch_size=3", "-o", str(out), "-q", *extra],
@@ -218,7 +218,7 @@ def test_a_killed_run_resumes_with_the_results_of_an_uninterrupted_run(tmp_path)
 
 
 def test_workers_are_honoured_even_for_one_batch():
-    from ata.experiment.runner import BASELINE_MISSION, load_session
+    from ata.session import BASELINE_MISSION, load_session
     from ata.experiment.units import chunks_of
     mission = load_session(str(BASELINE_MISSION), ["mission.scenarios=10"]).mission
     assert [c.size for c in chunks_of(mission, 1)] == [10]          # batch_size 500
@@ -232,7 +232,8 @@ def test_plan_keys_change_with_the_content_of_the_weights_a_mission_names(tmp_pa
     import shutil
 
     from ata.experiment import evaluate as ev
-    from ata.experiment.runner import load_session, plan_key
+    from ata.session import load_session
+    from ata.experiment.runner import plan_key
     import numpy as np
 
     weights = tmp_path / "w.pt"
@@ -403,7 +404,7 @@ def test_a_ctrl_c_lost_where_it_landed_still_stops_the_run(cli, tmp_path, monkey
     # hot loop on a machine's first run) raises there and is dropped: the run must still stop,
     # at the next epoch, saying what was saved
     from ata.experiment import units
-    from ata.experiment.runner import BASELINE_MISSION
+    from ata.session import BASELINE_MISSION
     real, sent = units.run_unit, []
 
     def lost_interrupt(unit, on_epoch=None):

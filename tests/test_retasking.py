@@ -19,7 +19,8 @@ from _support import (AIR, GROUND, HIGH, LOW, MED, UAV, Scripted, assert_trace, 
                       observed_after, perf, run_epochs, set_humans, set_robots, set_tasks)
 from ata import hookimpl
 from ata.core.kernel import Simulation
-from ata.experiment.runner import BASELINE_MISSION, load_session, run_mission
+from ata.session import BASELINE_MISSION, load_session
+from ata.experiment.runner import run_mission
 from ata.model.retask import retask_cost, worth
 from ata.plugins.policies.greedy import GreedyPolicy
 from ata.plugins.policies.random_policy import RandomPolicy

@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from ata.core.kernel import Simulation
-from ata.experiment.runner import BASELINE_MISSION, load_session, run_mission
+from ata.session import BASELINE_MISSION, load_session
+from ata.experiment.runner import run_mission
 from ata.model import fatigue
 
 ROOT = Path(__file__).resolve().parents[1]

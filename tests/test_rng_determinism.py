@@ -8,9 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from ata.experiment.runner import BASELINE_MISSION
+from ata.session import BASELINE_MISSION
 from ata.core.rng import BatchRNG, stream_word, threefry2x64, world_keys
-from ata.experiment.runner import load_session, run_mission
+from ata.session import load_session
+from ata.experiment.runner import run_mission
 
 SEED = 12345
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from ata.core.kernel import Simulation
 from ata.core.rng import BatchRNG
-from ata.experiment.runner import BASELINE_MISSION, load_session
+from ata.session import BASELINE_MISSION, load_session
 
 SEED = 2024
 MASK = (1 << 64) - 1

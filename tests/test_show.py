@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from _support import assert_user_error, flat
-from ata.experiment import runner
+from ata.session import BASELINE_MISSION, BUILTIN_MISSION, load_session
 from ata.core.kernel import Simulation
 from ata.experiment.units import run_batch
 from ata.model import tables
@@ -40,7 +40,7 @@ STEMS = ("show_map", "show_timeline", "show_humans")
 def small():
     # spread 0: the scenarios whose events SMALL's note lists (a leg cut short among them) are
     # those of the humans on the population's fatigue line
-    return runner.load_session(str(runner.BASELINE_MISSION), SMALL + ["human.fatigue_spread=0"])
+    return load_session(str(BASELINE_MISSION), SMALL + ["human.fatigue_spread=0"])
 
 
 @pytest.fixture(scope="module")
@@ -171,7 +171,7 @@ def test_human_states_in_range(recorded, small):
 def test_true_state_is_what_policies_see_without_noise():
     """With no uncertainty the observed F_f is the true one; the per-tick curves sampled at the
     epochs give exactly what the human model put in S."""
-    s = runner.load_session(str(runner.BASELINE_MISSION), SMALL[:-3] + [
+    s = load_session(str(BASELINE_MISSION), SMALL[:-3] + [
         "mission.uncertainty='none'"])
     ep = replay(s.mission, s.registry, 1)
     per_epoch = np.searchsorted(ep.times, ep.epoch_times)
@@ -181,8 +181,8 @@ def test_true_state_is_what_policies_see_without_noise():
 @pytest.mark.parametrize("mission", ["greedy", "default"])
 def test_a_replay_is_the_scenario_of_a_batch(mission):
     """A scenario replayed alone scores what it scored in a batch, for greedy and ATA-HRL."""
-    path = runner.BASELINE_MISSION if mission == "greedy" else runner.BUILTIN_MISSION
-    s = runner.load_session(str(path))
+    path = BASELINE_MISSION if mission == "greedy" else BUILTIN_MISSION
+    s = load_session(str(path))
     batch = run_batch(s.mission, s.registry, np.arange(2))
     ep = replay(s.mission, s.registry, 1)
     assert ep.score == batch["total"][1]
@@ -206,7 +206,7 @@ def test_show_writes_the_pictures_and_matches_the_run(cli, run_dir, tmp_path):
     pytest.importorskip("matplotlib")
     with open(run_dir / "results.csv", newline="", encoding="utf-8") as f:
         scores = {int(r["scenario"]): float(r["score"]) for r in csv.DictReader(f)}
-    s = runner.load_session(str(run_dir / "mission.resolved.toml"))
+    s = load_session(str(run_dir / "mission.resolved.toml"))
     for scenario, score in scores.items():       # every row, from batches of two
         assert replay(s.mission, s.registry, scenario).score == score
     out = tmp_path / "pictures"

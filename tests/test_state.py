@@ -11,7 +11,7 @@ from ata import hookimpl
 from ata.core.kernel import Simulation
 from ata.core.queues import Queue, last_per_key
 from ata.core.state import ReadOnlyState
-from ata.experiment.runner import BASELINE_MISSION, load_session
+from ata.session import BASELINE_MISSION, load_session
 from ata.plugins.humans import HumanState
 from ata.plugins.robots import RobotState
 from ata.plugins.tasks import TaskState

@@ -9,10 +9,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ata.experiment.runner import BASELINE_MISSION
+from ata.session import BASELINE_MISSION
 from ata.core.kernel import Simulation
 from ata.core.mission import TEAM_SETTINGS
-from ata.experiment.runner import load_session
+from ata.session import load_session
 from ata.core.state import Clock
 from ata.model import tables
 from ata.plugins.robots import RobotModel

@@ -7,6 +7,7 @@ from types import SimpleNamespace
 import pytest
 
 from ata.experiment import runner
+from ata.session import load_session
 from ata.runtime.inputs import family, shipped_setting, team_distance, weights_for
 
 LEARNED = ["components.initial='attention'", "components.condition='ctr'",
@@ -47,7 +48,7 @@ def test_the_distance_is_symmetric_in_log_size():
 
 
 def test_a_custom_team_loads_and_names_the_weights_of_its_size():
-    session = runner.load_session(None, [*LEARNED, "mission.setting='custom'",
+    session = load_session(None, [*LEARNED, "mission.setting='custom'",
                                          "mission.humans=20", "mission.robots=28",
                                          "mission.tasks=250"])
     resolved = session.mission.to_toml()
@@ -61,10 +62,10 @@ def test_a_custom_team_loads_and_names_the_weights_of_its_size():
 
 
 def test_setting_a_keeps_a_weights_and_an_explicit_file_wins():
-    session = runner.load_session(None, LEARNED + ["attention.checkpoint='builtin:ata_hrl'",
+    session = load_session(None, LEARNED + ["attention.checkpoint='builtin:ata_hrl'",
                                                    "ctr.checkpoint='builtin:ata_hrl'"])
     assert session.mission.component_settings["ctr"].checkpoint == "builtin:ata_hrl_a"
-    session = runner.load_session(None, [*LEARNED, "mission.setting='b'",
+    session = load_session(None, [*LEARNED, "mission.setting='b'",
                                          "ctr.checkpoint='builtin:ata_hrl_a'"])
     s = session.mission.component_settings
     assert (s["ctr"].checkpoint, s["attention"].checkpoint) == ("builtin:ata_hrl_a",

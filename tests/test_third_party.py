@@ -15,7 +15,7 @@ import pluggy
 import pytest
 
 from ata import hookimpl
-from ata.experiment import runner
+from ata.session import load_session
 from ata.core.kernel import Simulation
 from ata.core.registry import collect_components, get_plugin_manager, plugin_version
 
@@ -102,7 +102,7 @@ def test_cli_plugins_lists_it_with_its_version(dropout, cli):
 
 def run_epochs(mission_path: Path, n: int):
     """(truth, observed) of the first n epochs of the mission's batch."""
-    session = runner.load_session(str(mission_path))
+    session = load_session(str(mission_path))
     sim = Simulation(session.mission, session.registry, np.arange(4))
     sim.reset()
     seen = []

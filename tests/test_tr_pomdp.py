@@ -8,7 +8,8 @@ import torch
 
 from _support import train, whole_and_killed
 from ata.core.kernel import Simulation
-from ata.experiment.runner import build_trainer, load_session, run_mission, training_mission_for
+from ata.session import build_trainer, load_session, training_mission_for
+from ata.experiment.runner import run_mission
 from ata.core.state import Allocation
 from ata.plugins.conditions import Always
 from ata.plugins.tr_pomdp import agents as dqn

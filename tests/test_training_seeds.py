@@ -31,7 +31,7 @@ def seeds_dir(tmp_path_factory):
 
 def test_seeds_train_report_and_eval_against_greedy(seeds_dir, cli, tmp_path):
     import torch
-    from ata.experiment.results import paired_values, read_results
+    from ata.results.rows import paired_values, read_results
     assert json.loads((seeds_dir / "seeds.json").read_text())["seeds"] == [0, 1]
     for s in (0, 1):
         folder = seeds_dir / f"seed-{s}"
@@ -148,12 +148,12 @@ def test_without_tensorboard_training_logs_and_says_how_to_get_curves(tmp_path, 
                                              (["ita"], {"ita"}), (["trp"], {"dqn"}),
                                              (["ita", "trp"], {"dqn"})])
 def test_the_smoke_preset_trains_every_phase_of_the_recipe(plugins, phases):
-    from ata.experiment import runner
+    from ata.session import build_trainer, load_session, training_mission_for
     from ata.training.presets import preset_overrides
-    source = str(runner.training_mission_for(plugins))
-    recipe = runner.build_trainer(runner.load_session(source))
+    source = str(training_mission_for(plugins))
+    recipe = build_trainer(load_session(source))
     name = recipe.component_name
-    smoke = runner.build_trainer(runner.load_session(
+    smoke = build_trainer(load_session(
         source, preset_overrides(name, type(recipe), "smoke")))
     if name == "ata_hrl":
         full, small = recipe.phases(), smoke.phases()

@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from ata.experiment.runner import BASELINE_MISSION
+from ata.session import BASELINE_MISSION
 from ata.core.kernel import Simulation
 from ata.core.mission import UNCERTAINTY_LEVELS
-from ata.experiment.runner import load_session
+from ata.session import load_session
 
 LEVELS = {"low": (0.05, 0.1), "medium": (0.1, 0.2), "high": (0.2, 0.4)}
 B = 2000

@@ -10,8 +10,8 @@ import typer
 import typer.core
 
 from ata import __version__
-from ata.experiment import terminal
-from ata.experiment.terminal import console, err_console, escape, note
+from ata.cli import terminal
+from ata.cli.terminal import console, err_console, escape, note
 
 class _ReflowedHelp(typer.core.TyperGroup):
     """Commands whose help is their docstring, wrapped to the terminal: typer's rich mode keeps

@@ -10,8 +10,8 @@ from rich.table import Table
 from rich.text import Text
 
 from ata.cli.common import PluginsOption, _split, app, user_errors
-from ata.experiment import terminal
-from ata.experiment.terminal import console
+from ata.cli import terminal
+from ata.cli.terminal import console
 
 
 @app.command()

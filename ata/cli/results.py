@@ -9,8 +9,8 @@ import typer
 
 from ata.cli.common import (MarkdownOption, ResamplesOption, SetOption, _split, _split_or_none, app,
                             user_errors)
-from ata.experiment import terminal
-from ata.experiment.terminal import console, escape, note
+from ata.cli import terminal
+from ata.cli.terminal import console, escape, note
 
 
 @app.command()
@@ -47,10 +47,10 @@ def report(run_dir: List[Path] = typer.Argument(
     """Tables (with bootstrap confidence intervals) and figures of an evaluation, or the
     learning curves of a training run."""
     from ata.core.errors import MissionError
-    from ata.experiment import curves
-    from ata.experiment import report as rep
-    from ata.experiment import results_md
-    from ata.experiment.results import check_column, read_results
+    from ata.results import curves
+    from ata.results import report as rep
+    from ata.results import markdown as results_md
+    from ata.results.rows import check_column, read_results
 
     if any(curves.is_training_folder(d) for d in run_dir):
         if len(run_dir) > 1:
@@ -105,9 +105,9 @@ def compare(folders: List[Path] = typer.Argument(
     """Paired differences on the same scenarios, with bootstrap 95% CIs, on any results column;
     the scenarios a CI needs to clear 0 (--power); or column means (--means)."""
     from ata.core.errors import MissionError
-    from ata.experiment import compare as cmp
-    from ata.experiment import published
-    from ata.experiment.results import read_results
+    from ata.results import compare as cmp
+    from ata.published import sets as published
+    from ata.results.rows import read_results
 
     if len(folders) > 2:
         raise MissionError("", None, "compares one folder (methods against --base) or two "
@@ -138,9 +138,9 @@ def _against_published(folders: List[Path], column: Optional[List[str]], base: O
     """`ata compare A published[:NAME]`: A's methods against each published method (or
     --base), on the published rows, after `published.check_pairing`."""
     from ata.core.errors import MissionError
-    from ata.experiment import compare as cmp
-    from ata.experiment import published
-    from ata.experiment.results import read_results
+    from ata.results import compare as cmp
+    from ata.published import sets as published
+    from ata.results.rows import read_results
 
     mine = read_results(folders[0])
     theirs, manifest, where = published.read_published(folders[1])
@@ -173,7 +173,7 @@ def publish(eval_dir: Path = typer.Argument(..., metavar="EVAL_DIR",
     """Publish an evaluation's per-scenario rows with the code and weight digests, model
     revision and scenarios they were made with, for `ata compare A published:NAME` to pair new
     methods against without rerunning them (docs/evaluation.md, "Published rows")."""
-    from ata.experiment import published
+    from ata.published import sets as published
 
     folder = published.publish(eval_dir, out)
     console.print(f"wrote {escape(str(folder / published.ROWS))}, "

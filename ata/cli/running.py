@@ -9,8 +9,8 @@ import typer
 
 from ata.cli.common import (AddressOption, ForceOption, IsolateOption, PluginsOption, QuietOption,
                             SetOption, TimeoutOption, _split, _split_or_none, app, user_errors)
-from ata.experiment import terminal
-from ata.experiment.terminal import console, escape, note
+from ata.cli import terminal
+from ata.cli.terminal import console, escape, note
 
 
 @app.command()
@@ -49,21 +49,22 @@ def run(mission: Optional[str] = typer.Argument(
     saved in the run folder as it ends: rerun the same command with the same --out to go on
     after an interruption (only what is missing runs)."""
     from ata.experiment import execute, runner
-    from ata.experiment.isolate import require_sandbox
+    from ata.isolation import require_sandbox
+    from ata.session import IN_PROCESS, load_session
 
-    iso = require_sandbox(decision_timeout) if isolate else None
+    backend = require_sandbox(decision_timeout) if isolate else IN_PROCESS
     overrides = list(set_ or []) + ([f"mission.scenarios={scenarios}"] if scenarios else [])
-    session = runner.load_session(mission, overrides, _split(plugins), isolate=iso)
+    session = load_session(mission, overrides, _split(plugins), backend=backend)
     m = session.mission
     workers = workers or m.settings.workers
     # the components are built (checkpoints read) before any folder is made or scenario runs
-    runner.build_once(m, session.registry, iso)
+    runner.build_once(session)
     plan = runner.mission_plan(session, workers, chunk_size or runner.RUN_CHUNK)
     out_dir, result = execute.run_plan(
         plan, lambda done: (done.out_dir, runner.write_done(session, done)), out,
         executor=executor or ("serial" if workers <= 1 else "process"), workers=workers,
         address=address, cache=cache, force=force, notify=note,
-        progress=terminal.progress_bar(quiet), isolate=iso)
+        progress=terminal.progress_bar(quiet))
     terminal.key_values(f"{m.display_name()}: {m.settings.name}",
                         runner.summary_rows(session, result))
     terminal.warn(result.warnings)
@@ -113,36 +114,19 @@ def eval_(paths: List[str] = typer.Argument(
 
     Each finished work unit is saved in the output folder as it ends: rerun the same command
     with the same --out to go on after an interruption (only what is missing runs)."""
-    from ata.core.errors import MissionError
     from ata.experiment import evaluate as ev
-    from ata.experiment import execute
-    from ata.experiment import report as rep
-    from ata.experiment.isolate import require_sandbox
-    from ata.experiment.results import read_results
-    from ata.runtime.executors import EXECUTORS
+    from ata.isolation import require_sandbox
+    from ata.results import report as rep
+    from ata.results.rows import read_results
+    from ata.session import IN_PROCESS
 
-    iso = require_sandbox(decision_timeout) if isolate else None
-    if executor not in EXECUTORS:
-        raise MissionError("--executor", None, f"unknown executor {executor!r}; choose one of "
-                           + ", ".join(EXECUTORS))
-    chunk_size = chunk_size or ev.DEFAULT_CHUNK
-    # every job is built and validated before any scenario runs or anything is written
-    suites, jobs = ev.plan(list(paths), scenarios=scenarios, seed=seed,
-                           methods=_split_or_none(methods), settings=_split_or_none(settings),
-                           levels=_split_or_none(levels), isolate=iso)
-    cache_dir = None if no_cache else (cache or ev.default_cache_dir())
-    plan = ev.eval_plan(suites, jobs, chunk_size, describe={
-        "paths": list(paths), "jobs": len(jobs), "chunk_size": chunk_size})
-    arguments = {"paths": list(paths), "chunk_size": chunk_size, "scenarios": scenarios,
-                 "seed": seed, "methods": methods, "settings": settings, "levels": levels,
-                 "cache": str(cache_dir) if cache_dir else None,
-                 "first_scenario": ev.EVAL_FIRST_SCENARIO,
-                 "isolate": iso.key() if iso else None}
-    out_dir, result = execute.run_plan(
-        plan, lambda done: (done.out_dir, ev.write_done(suites, jobs, chunk_size, arguments,
-                                                        done)),
-        out, executor=executor, workers=workers, address=address, cache=cache_dir, force=force,
-        notify=note, progress=terminal.progress_bar(quiet), isolate=iso)
+    backend = require_sandbox(decision_timeout) if isolate else IN_PROCESS
+    out_dir, result = ev.evaluate_suites(
+        list(paths), out, executor=executor, workers=workers, address=address,
+        chunk_size=chunk_size, scenarios=scenarios, seed=seed,
+        methods=_split_or_none(methods), settings=_split_or_none(settings),
+        levels=_split_or_none(levels), cache=cache, no_cache=no_cache, force=force,
+        backend=backend, notify=note, progress=terminal.progress_bar(quiet))
     terminal.report_tables(rep.summarize(read_results(out_dir)))
     terminal.warn(result.warnings)
     console.print(f"{len(result.rows)} rows in {result.wall_s:.1f} s; results: "
@@ -169,21 +153,22 @@ def check(mission: str = typer.Argument(
     """Validate a mission file without running it; or, with --component, check that a
     component keeps the contract (docs/plugins.md, "Checking a component")."""
     from ata.experiment import runner
+    from ata.session import load_session
 
     if component is not None:
         from ata.testing import check_reference
         try:
             name = check_reference(component, mission, set_ or [], _split(plugins), seed)
         except AssertionError as exc:
-            from ata.experiment.terminal import err_console
+            from ata.cli.terminal import err_console
             err_console.print(f"[red]failed[/]: {escape(str(exc))}", highlight=False)
             raise typer.Exit(1) from None
         console.print(f"[green]ok[/]: {component} {escape(name)} ({escape(mission)}) keeps "
                       "the contract", highlight=False)
         return
-    session = runner.load_session(mission, set_ or [], _split(plugins))
+    session = load_session(mission, set_ or [], _split(plugins))
     m = session.mission
-    runner.build_once(m, session.registry)   # a component that cannot fill its slot fails
+    runner.build_once(session)   # a component that cannot fill its slot fails
     console.print(f"[green]ok[/]: {escape(mission)}: setting {m.settings.setting} "
                   f"({m.sizes.humans} humans, {m.sizes.robots} robots, {m.sizes.tasks} POIs), "
                   f"{m.settings.scenarios} scenarios, {m.settings.uncertainty} uncertainty "

@@ -25,18 +25,19 @@ import numpy as np
 import tomli_w
 
 from ata import __version__
+from ata.backend import IN_PROCESS, Backend
 from ata.core.errors import MissionError
 from ata.core.kernel import Simulation
 from ata.core.mission import UNCERTAINTY_LEVELS, Mission
 from ata.experiment import runlog
-from ata.experiment.execute import Done, Plan
-from ata.experiment.folders import safe_name, stamped_folder
-from ata.experiment.isolate import Isolation
-from ata.experiment.runner import Session, build_once, load_session
+from ata.experiment.execute import Done, Plan, ProgressFactory, run_plan
 from ata.experiment.suites import MethodSpec, Suite, load_suite
 from ata.experiment.units import Unit, fixed_chunks, make_units, run_units, scenario_ids
-from ata.runtime.executors import Executor
+from ata.published import check_models
+from ata.runtime.executors import EXECUTORS, Executor
+from ata.runtime.folders import safe_name, stamped_folder
 from ata.runtime.heldout import EVAL_FIRST_SCENARIO
+from ata.session import Session, load_session
 
 DEFAULT_SCENARIOS = 500
 """Scenarios per (method, setting, level) when neither the suite nor the command says."""
@@ -103,10 +104,11 @@ def _level_order(level: str) -> int:
 def plan(paths: list[str], *, scenarios: int | None = None, seed: int | None = None,
          methods: list[str] | None = None, settings: list[str] | None = None,
          levels: list[str] | None = None, validate: bool = True,
-         isolate: Isolation | None = None) -> tuple[list[Suite], list[Job]]:
-    """Read the suites and build every job's mission; with `validate`, build each job's
-    components once on one scenario, so that a bad method fails before any work starts (with
-    `isolate`, its decision components in a sandboxed process, never here)."""
+         backend: Backend = IN_PROCESS) -> tuple[list[Suite], list[Job]]:
+    """Read the suites and build every job's mission, its decisions run by `backend` (a
+    method of published rows by its own); with `validate`, build each job's components once on
+    one scenario where its backend builds them, so that a bad method fails before any work
+    starts."""
     suites = [load_suite(p) for p in paths]
     names: dict[str, str] = {}
     for suite in suites:
@@ -135,7 +137,7 @@ def plan(paths: list[str], *, scenarios: int | None = None, seed: int | None = N
                                        f"({', '.join(own_settings)})", file=suite.path)
             for st in _pick(own_settings, settings):
                 for lv in _pick(own_levels, levels):
-                    job = _job(suite, spec, st, lv, scenarios, seed, isolate)
+                    job = _job(suite, spec, st, lv, scenarios, seed, backend)
                     if (settings and job.setting not in settings) or \
                             (levels and job.level not in levels):
                         continue
@@ -152,10 +154,8 @@ def plan(paths: list[str], *, scenarios: int | None = None, seed: int | None = N
                            "setting, uncertainty) of " + ", ".join(paths))
     if validate:
         for job in jobs:
-            _validate_job(job, isolate)
-    if any(j.mission.source.startswith("published:") for j in jobs):
-        from ata.experiment.published import check_models
-        check_models(jobs)
+            _validate_job(job)
+    check_models(jobs)
     return suites, jobs
 
 
@@ -168,7 +168,7 @@ def _context(exc: MissionError, source: str, method: str, setting: str | None,
 
 
 def _job(suite: Suite, spec: MethodSpec, setting: str | None, level: str | None,
-         scenarios: int | None, seed: int | None, isolate: Isolation | None = None) -> Job:
+         scenarios: int | None, seed: int | None, backend: Backend = IN_PROCESS) -> Job:
     overrides = list(spec.overrides)
     if setting is not None:
         overrides += spec.per_setting.get(setting, [])
@@ -184,14 +184,11 @@ def _job(suite: Suite, spec: MethodSpec, setting: str | None, level: str | None,
     root = f"'{root}'" if isinstance(root, str) else int(root)    # 'env:NAME': secret
     overrides += [f"mission.seed={root}", f"mission.first_scenario={EVAL_FIRST_SCENARIO}"]
     try:
-        if spec.mission.startswith("published:"):       # rows read, not run
-            from ata.experiment.published import published_session
-            if spec.overrides or spec.plugins:
-                raise MissionError("", None, "a published method takes no set or plugins")
-            session = published_session(spec.mission, overrides)
+        if spec.backend is not None:                    # its own: published rows, read
+            session = spec.backend.load(overrides)
         else:
             session = load_session(spec.mission, overrides, spec.plugins or None,
-                                   isolate=isolate)
+                                   backend=backend)
     except MissionError as exc:
         raise _context(exc, suite.path, spec.name, setting, level) from None
     m = session.mission
@@ -199,22 +196,49 @@ def _job(suite: Suite, spec: MethodSpec, setting: str | None, level: str | None,
                session=session, source=suite.path)
 
 
-def _validate_job(job: Job, isolate: Isolation | None = None) -> None:
-    """Build the job's components once, on one scenario (as `ata check` does), and check that
-    its scenarios are held out (asking a sandboxed process, with `isolate`)."""
+def _validate_job(job: Job) -> None:
+    """Build the job's components once, on one scenario, where its backend builds them (as
+    `ata check` does), and check that its scenarios are held out."""
     m = job.mission
-    if m.source.startswith("published:"):
-        return                         # published rows: checked as read, nothing is built
     try:
-        if isolate is None:
-            check_held_out(m, build_once(m, job.session.registry))
-        else:
-            from ata.experiment.proxies import isolated_simulation
-            with isolated_simulation(m.replace(scenarios=1), job.session.registry,
-                                     [m.settings.first_scenario], isolate) as sim:
-                check_held_out(m, sim)
+        job.session.backend.check(m, job.session.registry, lambda sim: check_held_out(m, sim))
     except MissionError as exc:
         raise _context(exc, job.source, job.method, job.setting, job.level) from None
+
+
+# -- the command -------------------------------------------------------------------------------
+def evaluate_suites(paths: list[str], out: str | Path | None = None, *,
+                    executor: str = "process", workers: int | None = None,
+                    address: str | None = None, chunk_size: int | None = None,
+                    scenarios: int | None = None, seed: int | None = None,
+                    methods: list[str] | None = None, settings: list[str] | None = None,
+                    levels: list[str] | None = None, cache: str | Path | None = None,
+                    no_cache: bool = False, force: bool = False,
+                    backend: Backend = IN_PROCESS, notify: Callable[[str], None] | None = None,
+                    progress: ProgressFactory | None = None) -> tuple[Path, EvalResult]:
+    """`ata eval`: plan the suites' jobs (every job built and validated before any scenario
+    runs or anything is written), run them into `out` (`execute.run_plan`) and write the
+    folder; its path and the result. `cache`: the cache folder (default `default_cache_dir`,
+    none with `no_cache`)."""
+    if executor not in EXECUTORS:
+        raise MissionError("--executor", None, f"unknown executor {executor!r}; choose one of "
+                           + ", ".join(EXECUTORS))
+    chunk_size = chunk_size or DEFAULT_CHUNK
+    suites, jobs = plan(list(paths), scenarios=scenarios, seed=seed, methods=methods,
+                        settings=settings, levels=levels, backend=backend)
+    cache_dir = None if no_cache else (cache or default_cache_dir())
+    the_plan = eval_plan(suites, jobs, chunk_size, describe={
+        "paths": list(paths), "jobs": len(jobs), "chunk_size": chunk_size})
+    arguments = {"paths": list(paths), "chunk_size": chunk_size, "scenarios": scenarios,
+                 "seed": seed, "methods": ",".join(methods) if methods else None,
+                 "settings": ",".join(settings) if settings else None,
+                 "levels": ",".join(levels) if levels else None,
+                 "cache": str(cache_dir) if cache_dir else None,
+                 "first_scenario": EVAL_FIRST_SCENARIO, "isolate": backend.key() or None}
+    return run_plan(the_plan, lambda done: (done.out_dir, write_done(suites, jobs, chunk_size,
+                                                                     arguments, done)),
+                    out, executor=executor, workers=workers, address=address, cache=cache_dir,
+                    force=force, notify=notify, progress=progress)
 
 
 # -- work units ---------------------------------------------------------------------------------
@@ -224,7 +248,8 @@ def job_units(jobs: list[Job], chunk_size: int, cache: str | Path | None = None,
     return make_units([j.mission for j in jobs],
                       [fixed_chunks(scenario_ids(j.mission), chunk_size) for j in jobs],
                       cache=cache, executor=executor,
-                      registries=[j.session.registry for j in jobs])
+                      registries=[j.session.registry for j in jobs],
+                      backends=[j.session.backend for j in jobs])
 
 
 # -- running ------------------------------------------------------------------------------------
@@ -243,13 +268,8 @@ def plan_key(jobs: list[Job], chunk_size: int) -> str:
     return runlog.plan_key({"ata": __version__, "chunk_size": chunk_size,
                             "jobs": [[j.method, j.setting, j.level, j.mission.to_toml(),
                                       j.session.versions(), j.session.inputs(),
-                                      j.session.code(), _published(j)]
+                                      j.session.code(), j.session.backend.key()]
                                      for j in jobs]})
-
-
-def _published(job: Job) -> str:
-    """The published rows a job reads ('' for a job that runs)."""
-    return job.mission.source if job.mission.source.startswith("published:") else ""
 
 
 def plan_code(jobs: list[Job]) -> dict[str, str]:
@@ -264,6 +284,7 @@ def eval_plan(suites: list[Suite], jobs: list[Job], chunk_size: int = DEFAULT_CH
               describe: dict[str, Any] | None = None) -> Plan:
     """`ata eval`'s plan: each job's scenarios in chunks of `chunk_size`, a work unit each."""
     return Plan(missions=[j.mission for j in jobs], registries=[j.session.registry for j in jobs],
+                backends=[j.session.backend for j in jobs],
                 chunks=[fixed_chunks(scenario_ids(j.mission), chunk_size) for j in jobs],
                 key=plan_key(jobs, chunk_size),
                 describe={**(describe or {}), "code": plan_code(jobs)},
@@ -396,6 +417,3 @@ def default_cache_dir() -> Path:
     env = os.environ.get("ATA_CACHE")
     return Path(env).expanduser() if env else Path("~/.cache/ata").expanduser()
 
-
-def total_scenarios(jobs: list[Job]) -> int:
-    return sum(j.mission.settings.scenarios for j in jobs)

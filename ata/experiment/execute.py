@@ -12,21 +12,22 @@ results while the folder is still held. The commands differ only in their `Plan`
 from __future__ import annotations
 
 import contextlib
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, ContextManager, TypeVar
 
 import numpy as np
 
+from ata.backend import Backend
 from ata.core.errors import MissionError
 from ata.core.mission import Mission
 from ata.core.registry import Register
 from ata.experiment import runlog
-from ata.experiment.folders import cannot_write, prepare_out_dir
-from ata.experiment.isolate import Isolation, close_idle
 from ata.experiment.units import make_units, run_units
 from ata.runtime import memory
 from ata.runtime.executors import make_executor
+from ata.runtime.folders import cannot_write, prepare_out_dir
 
 T = TypeVar("T")
 Advance = Callable[[float], None]
@@ -37,8 +38,9 @@ of n more scenarios done (the CLI's progress bar)."""
 
 @dataclass
 class Plan:
-    """The work of one output folder: each job's mission and its chunks of scenario ids (a work
-    unit each, in order), and what identifies the plan.
+    """The work of one output folder: each job's mission, registry, backend (where its
+    decisions run: `ata.backend`) and chunks of scenario ids (a work unit each, in order), and
+    what identifies the plan.
 
     :param key: the digest of everything that decides the rows (`runlog.plan_key`): a folder
         recorded under another key is another plan's.
@@ -53,6 +55,7 @@ class Plan:
 
     missions: list[Mission]
     registries: list[Register]
+    backends: list[Backend]
     chunks: list[list[np.ndarray]]
     key: str
     describe: dict[str, Any]
@@ -111,7 +114,7 @@ def run_plan(plan: Plan, write: Callable[[Done], T], out: str | Path | None = No
              executor: str = "serial", workers: int | None = None, address: str | None = None,
              cache: str | Path | None = None, force: bool = False,
              notify: Callable[[str], None] | None = None,
-             progress: ProgressFactory | None = None, isolate: Isolation | None = None) -> T:
+             progress: ProgressFactory | None = None) -> T:
     """Run the plan's missing units into `out` (default: `plan.default_out()`), then
     `write(done)` while the folder is still held; its value is returned.
 
@@ -120,9 +123,6 @@ def run_plan(plan: Plan, write: Callable[[Done], T], out: str | Path | None = No
     :param cache: the cache folder of results that depend on the scenario alone (None: none).
     :param force: start over in a folder that holds another plan's results.
     :param notify: told of messages for the user (resuming).
-    :param isolate: run the decision components of every unit in a sandboxed process
-        (`ata.experiment.isolate`); the plan's key then says so, so that a folder is never
-        resumed across isolated and in-process units.
     :raises Interrupted: on Ctrl-C, once the units under way are stopped.
     """
     with contextlib.ExitStack() as stack:
@@ -136,26 +136,22 @@ def run_plan(plan: Plan, write: Callable[[Done], T], out: str | Path | None = No
         if not force:
             changed_code(out_dir, plan)
         try:
-            key = plan.key if isolate is None else runlog.plan_key({"plan": plan.key,
-                                                                     **isolate.key()})
-            log = runlog.RunLog(out_dir, key, plan.units, force=force,
+            log = runlog.RunLog(out_dir, plan.key, plan.units, force=force,
                                 describe={"command": plan.command, **plan.describe},
                                 expected=[ids for chunks in plan.chunks for ids in chunks])
         except runlog.NotSaved as exc:
             raise MissionError("", None, f"{exc}; nothing was run") from None
         stack.callback(log.close)
-        if isolate is not None:
-            # the decision processes kept between batches end with the plan; those the
-            # validation started here serve no worker process
-            stack.callback(close_idle)
-            if pool.parallel:
-                close_idle()
+        for backend in {id(b): b for b in plan.backends}.values():
+            # what a backend keeps between batches ends with the plan
+            backend.open(pool.parallel)
+            stack.callback(backend.close)
         for message in plan.notes + [dropped_message(log), resume_message(log, out_dir,
                                                                           plan.unit_name)]:
             if message and notify is not None:
                 notify(message)
         units = make_units(plan.missions, plan.chunks, cache=cache, executor=pool,
-                           registries=plan.registries, isolate=isolate)
+                           registries=plan.registries, backends=plan.backends)
         before = sum(int(np.asarray(p["scenario"]).size) for p in log.done.values())
         bar = progress(plan.title, plan.scenarios, before) if progress is not None \
             else contextlib.nullcontext(None)
@@ -193,7 +189,6 @@ def dropped_message(log: runlog.RunLog) -> str | None:
 def changed_code(out_dir: Path, plan: Plan) -> None:
     """Refuse to resume a folder whose results were made with other code of a component (its
     plan.json's ``code``), naming each component that changed and --force."""
-    import json
     try:
         before = json.loads((out_dir / runlog.PLAN).read_text(encoding="utf-8")).get("code")
     except (OSError, ValueError, AttributeError):

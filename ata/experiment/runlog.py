@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from ata.core.errors import MissionError
-from ata.experiment.folders import cannot_write
+from ata.runtime.folders import cannot_write
 
 PLAN = "plan.json"
 UNITS = "units.jsonl"

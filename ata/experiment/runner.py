@@ -1,13 +1,11 @@
-"""Running a mission: scenarios in batches (optionally in worker processes), per-scenario
-results, summary statistics, and the run folder that makes every number reproducible."""
+"""Running a mission: its plan (one job, its scenarios in batches), the per-scenario results,
+summary statistics, and the run folder that makes every number reproducible."""
 
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import json
 import math
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -16,191 +14,17 @@ import numpy as np
 import tomli_w
 
 from ata import __version__
-from ata.core import mission as mission_mod
-from ata.core.errors import MissionError
-from ata.core.kernel import REFERENCE_COLUMN, Simulation
+from ata.core.kernel import REFERENCE_COLUMN
 from ata.core.mission import Mission
-from ata.core.registry import Register, collect_components, get_plugin_manager, providers
 from ata.experiment import runlog
 from ata.experiment.execute import Done, Plan
-from ata.experiment.folders import stamped_folder
-from ata.experiment.isolate import Isolation
 from ata.experiment.units import (RUN_CHUNK, chunks_of, fixed_chunks, make_units, run_units,
                                   scenario_ids)
 from ata.runtime import memory
 from ata.runtime.executors import Executor, ProcessExecutor, SerialExecutor
-from ata.runtime.heldout import EVAL_FIRST_SCENARIO
-from ata.runtime.inputs import file_digest, shipped_setting
-
-BUILTIN_MISSION = Path(__file__).resolve().parent.parent / "missions" / "default.toml"
-"""`ata run`'s default: the full ATA-HRL method with its shipped weights."""
-BASELINE_MISSION = BUILTIN_MISSION.with_name("greedy.toml")
-"""The greedy reference mission, the base that tests and benchmarks override."""
-TRAINING_MISSIONS = sorted(BUILTIN_MISSION.parent.glob("train_*.toml"))
-"""The built-in training missions; `ata train --plugins X` takes the one whose components come
-from the optional plugins X."""
-
-
-@dataclass
-class Session:
-    """A plugin manager, its component registry, and one validated mission."""
-
-    mission: Mission
-    registry: Register
-    pm: Any
-
-    def versions(self) -> dict[str, str]:
-        """'kind name' -> 'distribution version' of every chosen component."""
-        return {f"{kind} {name}": self.registry.get(kind, name, "").dist
-                for kind, name in self.mission.chosen()}
-
-    def code(self) -> dict[str, str]:
-        """'kind name' -> the digest of the code of every chosen component (its plugin's
-        source files; for a component named by reference, its file): the plan keys hold them,
-        so results made with other code are never resumed as current."""
-        from ata.core.references import code_digest
-        out = {}
-        for kind, name in self.mission.chosen():
-            info = self.registry.get(kind, name, "")
-            # a method run apart (--isolate) brings the digest of its code, never imported
-            out[f"{kind} {name}"] = getattr(info.factory, "code", None) or \
-                code_digest(info.factory, info.plugin)
-        return out
-
-    def inputs(self) -> dict[str, str]:
-        """'component.setting' -> content digest of every file a component setting names (a
-        checkpoint, ``builtin:NAME`` or a path): the plan keys hold them, so results made with
-        one set of weights are never resumed with another under the same name."""
-        return inputs_of({comp: {f.name: getattr(settings, f.name)
-                                 for f in dataclasses.fields(settings)}
-                          for comp, settings in self.mission.component_settings.items()
-                          if settings is not None and dataclasses.is_dataclass(settings)})
-
-
-def inputs_of(tables: dict[str, dict[str, Any]]) -> dict[str, str]:
-    """'component.setting' -> content digest of every file a setting value of `tables`
-    (component -> its settings as values) names: `Session.inputs`, or a resolved mission's
-    component tables read back."""
-    out = {}
-    for comp, table in tables.items():
-        for name, value in table.items():
-            digest = file_digest(value) if isinstance(value, str) and value else None
-            if digest is not None:
-                out[f"{comp}.{name}"] = digest
-    return out
-
-
-def mission_file(spec: str | Path | None) -> str:
-    """The file of a mission argument: ``builtin:NAME`` is ata/missions/NAME.toml (as in
-    suites), nothing the built-in default mission, an `ata train` run folder its resolved
-    mission (which names its best.pt), anything else a path."""
-    if not spec:
-        return str(BUILTIN_MISSION)
-    spec = str(spec)
-    if Path(spec).is_dir():            # an `ata train` run folder: its trained weights
-        from ata.training.seeds import trained_mission
-        return trained_mission(spec)
-    if spec.startswith("builtin:"):
-        name = spec.split(":", 1)[1]
-        path = BUILTIN_MISSION.parent / f"{name}.toml"
-        if not name or "/" in name or not path.is_file():
-            known = ", ".join(f"builtin:{p.stem}" for p in sorted(BUILTIN_MISSION.parent.glob(
-                "*.toml")))
-            raise MissionError("", None, f"no built-in mission {name!r}; there are: {known}",
-                               file=spec)
-        return str(path)
-    return spec
-
-
-def load_session(path: str | None = None, overrides: list[str] | None = None,
-                 plugins: list[str] | None = None, extra: tuple = (),
-                 isolate: Isolation | None = None) -> Session:
-    """Read (or take the built-in) mission, load the plugins it needs, and validate it. With
-    `isolate`, no third-party method is imported here: a sandboxed process validates it
-    (`ata.experiment.remote`)."""
-    source = mission_file(path)
-    raw = mission_mod.read_toml(source)
-    raw = mission_mod.apply_overrides(raw, overrides or [])   # its errors name --set
-    # a component named in [components] loads its plugin (lazy registration); these are the
-    # optional plugins asked for by name
-    optional = list(dict.fromkeys((plugins or []) + mission_mod.requested_plugins(raw)))
-    if plugins:
-        raw.setdefault("mission", {})["plugins"] = optional
-    if isolate is not None and not extra:
-        from ata.experiment.isolate import prober, resolver
-        from ata.experiment.remote import isolated_registry
-        registry, raw = isolated_registry(raw, optional, source, resolver(isolate),
-                                          prober(isolate))
-        pm = registry.pm
-    else:
-        pm = get_plugin_manager(optional=optional, extra=extra)
-        registry = collect_components(pm)
-    mission = mission_mod.validate(raw, registry, source=source, overrides=overrides or [])
-    return Session(mission=mission, registry=registry, pm=pm)
-
-
-def closure(plugins: list[str]) -> frozenset[str]:
-    """A set of optional plugins with those they bring along (ctr and aux bring ita)."""
-    from ata.core.registry import OPTIONAL_PLUGINS, requires
-    out = set(plugins)
-    for name in plugins:
-        if name in OPTIONAL_PLUGINS:
-            out |= set(requires(name))
-    return frozenset(out)
-
-
-def training_mission_for(plugins: list[str]) -> Path:
-    """The built-in training mission whose optional plugins (those it names and those that
-    provide its components) are `plugins` (with what they bring along): ctr,aux the full
-    ATA-HRL; ctr w/o.AUX; ita the ITA alone; trp TR-POMDP; ita,trp AtRL-TR."""
-    wanted = closure(plugins)
-    found = {}
-    for path in TRAINING_MISSIONS:
-        raw = mission_mod.read_toml(path)
-        found[closure(mission_mod.requested_plugins(raw)
-                      + providers(mission_mod.named_components(raw)))] = path
-    if wanted not in found:
-        known = "; ".join(",".join(sorted(k)) for k in found)
-        raise MissionError("--plugins", None, f"no built-in training mission for "
-                           f"{','.join(sorted(wanted)) or '(none)'}; there are: {known} (or "
-                           "give a training mission file)")
-    return found[wanted]
-
-
-def build_trainer(session: Session) -> Any:
-    """The trainer component the mission names in [components] trainer, built from its table;
-    its scenario ranges are checked to stay below the evaluation ids."""
-    m = session.mission
-    name = m.slots.trainer
-    if name == "none":
-        raise MissionError("[components]", "trainer", "names no trainer: nothing to train "
-                           "(ata_hrl trains ATA-HRL's parts, tr_pomdp the TR-POMDP agents)",
-                           file=m.source)
-    info = session.registry.get("trainer", name, "[components] key 'trainer'")
-    try:
-        trainer = info.factory(m.component_settings.get(name), m, session.registry)
-    except MissionError as exc:
-        raise exc.with_file(m.source) from None
-    trainer.component_name = name
-    for seed, lo, hi in trainer.scenario_ranges():
-        if hi > EVAL_FIRST_SCENARIO:
-            raise MissionError(f"[{name}]", None, f"trains on scenario ids up to {hi - 1}, "
-                               f"which reach the evaluation ids (from {EVAL_FIRST_SCENARIO})",
-                               file=m.source)
-    return trainer
-
-
-def training_saved(run_dir: str | Path) -> str:
-    """What an interrupted `ata train` left in its run folder and how to go on, read from the
-    folder's files (the trainers save checkpoint.pt as they go)."""
-    folder = Path(run_dir)
-    checkpoint = folder / "checkpoint.pt"
-    if not checkpoint.is_file():
-        return (f"interrupted before the first checkpoint: nothing to resume in {folder}; run "
-                "the same command again to start over")
-    saved = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(checkpoint.stat().st_mtime))
-    return (f"interrupted: the last checkpoint, saved {saved}, is {checkpoint}; run ata train "
-            f"--resume {folder} to go on from it (the steps after it run again)")
+from ata.runtime.folders import stamped_folder
+from ata.runtime.inputs import shipped_setting
+from ata.session import Session
 
 
 @dataclass
@@ -228,29 +52,23 @@ class RunResult:
         return out
 
 
-def build_once(mission: Mission, registry: Register,
-               isolate: Isolation | None = None) -> Simulation | None:
-    """Build the mission's components once, on its first scenario (as `ata check` does): a
-    component that cannot fill its slot, or a checkpoint that cannot be read, fails here,
-    before any work starts. With `isolate`, the decision components are built in a sandboxed
-    process (`ata.experiment.isolate`), never here, and nothing is returned."""
-    one, ids = mission.replace(scenarios=1), [mission.settings.first_scenario]
-    if isolate is None:
-        sim = Simulation(one, registry, ids)
-        memory.remember(mission, sim.pm)      # the memory estimate asks them (ata_peak_bytes)
-        return sim
-    from ata.experiment.proxies import isolated_simulation
-    with isolated_simulation(one, registry, ids, isolate) as sim:
-        sim.pm.hook.ata_trained_on()           # waits for the process to build them
-    return None
+def build_once(session: Session) -> None:
+    """Build the session's components once, on its first scenario (as `ata check` does), where
+    its backend builds them: a component that cannot fill its slot, or a checkpoint that cannot
+    be read, fails here, before any work starts."""
+    session.backend.check(session.mission, session.registry,
+                          lambda sim: sim.pm.hook.ata_trained_on())
 
 
 def plan_key(session: Session, chunks: list[np.ndarray]) -> str:
-    """What decides a run's rows: the resolved mission, the components' versions, the chunks."""
+    """What decides a run's rows: the resolved mission, the components' versions, the chunks,
+    and where the decisions run (a timeout can change rows)."""
+    backend = session.backend.key()
     return runlog.plan_key({"ata": __version__, "mission": session.mission.to_toml(),
                             "versions": session.versions(), "inputs": session.inputs(),
                             "code": session.code(),
-                            "chunks": [[int(c[0]), int(c.size)] for c in chunks]})
+                            "chunks": [[int(c[0]), int(c.size)] for c in chunks],
+                            **({"backend": backend} if backend else {})})
 
 
 def mission_plan(session: Session, workers: int | None = None,
@@ -270,7 +88,8 @@ def mission_plan(session: Session, workers: int | None = None,
         chunks = fixed_chunks(scenario_ids(m), fits)
         notes.append(f"batches of {fits} scenarios, not {size}: a bigger batch would need more "
                      f"than {memory.limit_text(limit)}")
-    return Plan(missions=[m], registries=[session.registry], chunks=[chunks],
+    return Plan(missions=[m], registries=[session.registry], backends=[session.backend],
+                chunks=[chunks],
                 key=plan_key(session, chunks), unit_name="batches",
                 describe={"mission": m.settings.name, "scenarios": m.settings.scenarios,
                           "code": session.code()},
@@ -316,7 +135,7 @@ def run_mission(session: Session, progress: Callable[[float], None] | None = Non
             executor = stack.enter_context(SerialExecutor() if workers <= 1
                                            else ProcessExecutor(workers))
         found = make_units([mission], [chunks], cache=cache, executor=executor,
-                           registries=[session.registry])
+                           registries=[session.registry], backends=[session.backend])
         parts, wall = run_units(found, executor, log=log, progress=progress)
     return run_result(parts, wall)
 

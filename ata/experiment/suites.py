@@ -8,8 +8,12 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from ata.backend import Backend
 from ata.core import mission as mission_mod
 from ata.core.errors import MissionError
+from ata.published import PREFIX as PUBLISHED_PREFIX
+from ata.published import published_method
+from ata.training.folders import trained_methods, trained_suite
 
 SUITE_KEYS = {"name": "a label for the evaluation",
               "description": "free text",
@@ -45,6 +49,7 @@ class MethodSpec:
     settings: list[str] | None = None   # None: the suite's (or the mission's own)
     levels: list[str] | None = None
     per_setting: dict[str, list[str]] = field(default_factory=dict)
+    backend: Backend | None = None      # None: the evaluation's (in-process or isolated)
 
 
 @dataclass
@@ -84,9 +89,6 @@ def _unknown(table: dict, allowed: dict, where: str, path: str) -> None:
 
 
 def _mission_path(spec: str, base: Path, where: str, path: str) -> str:
-    if spec.startswith("published:"):          # published rows (ata.experiment.published)
-        from ata.experiment.published import method_spec
-        return method_spec(spec, base, where, path)
     if spec.startswith("builtin:"):
         target = BUILTIN_MISSIONS / f"{spec.split(':', 1)[1]}.toml"
     else:
@@ -104,7 +106,6 @@ def load_suite(path: str | Path) -> Suite:
     """Read a suite file, or a mission file (a table [mission]) as a one-method suite; an `ata
     train` folder is the suite of its seeds against greedy, or its run's trained weights."""
     if Path(path).is_dir():             # an `ata train` folder: its suite, or its mission
-        from ata.training.seeds import trained_suite
         path = trained_suite(path)
     path = str(path)
     raw = mission_mod.read_toml(path)
@@ -152,8 +153,15 @@ def load_suite(path: str | Path) -> Suite:
             raise MissionError(where, "name", "is required (a string)", file=path)
         if "mission" not in table or not isinstance(table["mission"], str):
             raise MissionError(where, "mission", "is required (a mission file)", file=path)
-        spec = MethodSpec(name=label, source=path,
-                          mission=_mission_path(table["mission"], base, where, path))
+        if table["mission"].startswith(PUBLISHED_PREFIX):   # rows read, not run
+            rows = published_method(table["mission"], base, where, path)
+            if "set" in table or "plugins" in table:
+                raise MissionError(where, "set" if "set" in table else "plugins",
+                                   "a published method takes no set or plugins", file=path)
+            spec = MethodSpec(name=label, source=path, mission=rows.source, backend=rows)
+        else:
+            spec = MethodSpec(name=label, source=path,
+                              mission=_mission_path(table["mission"], base, where, path))
         spec.overrides = _strings(table.get("set", []), where, "set", path)
         spec.plugins = _strings(table.get("plugins", []), where, "plugins", path)
         if "settings" in table:
@@ -178,8 +186,8 @@ def load_suite(path: str | Path) -> Suite:
                 raise MissionError(where, "set", f"{text!r}: the evaluation sets mission."
                                    f"{keys[1]} itself (use the suite's settings, uncertainty, "
                                    "scenarios and seed)", file=path)
-        if Path(spec.mission).is_dir():  # its trained weights; each seed's, a method each
-            from ata.training.seeds import trained_methods
+        if spec.backend is None and Path(spec.mission).is_dir():
+            # an `ata train` folder: its trained weights; each seed's, a method each
             suite.methods += [replace(spec, name=n, mission=m)
                               for n, m in trained_methods(spec.mission, spec.name)]
             continue

@@ -18,14 +18,11 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 
-from ata.core.kernel import Simulation
+from ata.backend import IN_PROCESS, Backend
 from ata.core.mission import Mission
-from ata.core.references import restore
-from ata.core.registry import Register, collect_components, get_plugin_manager
+from ata.core.registry import Register
 from ata.experiment import runlog
 from ata.experiment.interrupts import Interrupts
-from ata.experiment.isolate import Isolation, prober
-from ata.experiment.remote import worker_registry
 from ata.runtime.cache import run_cache
 from ata.runtime.executors import Executor
 
@@ -34,23 +31,12 @@ RUN_CHUNK = 100
 (each batch is recorded as it ends); bigger batches step faster (docs/evaluation.md)."""
 
 
-def run_batch(mission: Mission, registry: Register, scenario_ids: np.ndarray,
+def run_batch(mission: Mission, registry: Register | None, scenario_ids: np.ndarray,
               on_epoch: Callable[[int], None] | None = None,
-              isolate: Isolation | None = None) -> dict[str, Any]:
-    """Simulate one batch and return its per-scenario arrays; with `isolate`, its decision
-    components run in a sandboxed process of their own (`ata.experiment.isolate`)."""
-    if isolate is None:
-        record = Simulation(mission, registry, scenario_ids).run(on_epoch=on_epoch)
-    else:
-        from ata.experiment.proxies import isolated_simulation
-        with isolated_simulation(mission, registry, scenario_ids, isolate) as sim:
-            record = sim.run(on_epoch=on_epoch)
-    out = {"scenario": np.asarray(scenario_ids), "total": record.total,
-           "upper_bound": record.upper_bound.copy(),
-           "reallocations": record.reallocated.sum(axis=1)}
-    out.update({f"m:{k}": np.asarray(v, dtype=float) for k, v in record.metrics.items()})
-    out["warnings"] = list(record.warnings)
-    return out
+              backend: Backend = IN_PROCESS) -> dict[str, Any]:
+    """Simulate one batch where `backend` runs its decisions and return its per-scenario
+    arrays (`ata.backend.Part`)."""
+    return backend.run_batch(mission, registry, np.asarray(scenario_ids), on_epoch)
 
 
 def one_worker(mission: Mission) -> Mission:
@@ -108,9 +94,8 @@ class Unit:
 
     ``registry`` is set only for units run in this process (a serial executor): the session's
     own, which may hold components no fresh plugin manager finds (a test's inline ones). A unit
-    sent to a worker builds a fresh plugin manager there. ``isolate``: its decision components
-    run in a sandboxed process apart (`--isolate`; one per method and host process at a time,
-    kept between its units).
+    sent to a worker builds the registry its backend gives there. ``backend``: where its
+    decisions run (`ata.backend`).
     """
 
     job: int
@@ -119,45 +104,36 @@ class Unit:
     cache: str | None = None
     parallel: bool = False
     registry: Register | None = None
-    isolate: Isolation | None = None
+    backend: Backend = IN_PROCESS
 
 
 def make_units(missions: list[Mission], chunks: list[list[np.ndarray]], *,
                cache: Any = None, executor: Executor | None = None,
                registries: list[Register] | None = None,
-               isolate: Isolation | None = None) -> list[Unit]:
-    """The units of a plan: job j's mission over each of its chunks, in order."""
+               backends: list[Backend] | None = None) -> list[Unit]:
+    """The units of a plan: job j's mission over each of its chunks, in order, where job j's
+    backend runs them."""
     parallel = bool(executor is not None and executor.parallel)
     units = []
     for j, (mission, parts) in enumerate(zip(missions, chunks)):
         registry = None if parallel or registries is None else registries[j]
+        backend = backends[j] if backends is not None else IN_PROCESS
         for ids in parts:
             units.append(Unit(j, mission, ids, str(cache) if cache is not None else None,
-                              parallel, registry, isolate))
+                              parallel, registry, backend))
     return units
 
 
 def run_unit(unit: Unit, on_epoch: Callable[[int], None] | None = None) -> dict[str, Any]:
-    """Run one unit (in a fresh plugin manager unless it carries its registry); the result
-    carries the unit's wall time."""
+    """Run one unit (with the registry its backend gives a worker, unless it carries one); the
+    result carries the unit's wall time."""
     t0 = time.perf_counter()
-    if unit.mission.source.startswith("published:"):   # a suite's published method: read
-        from ata.experiment.published import unit_part
-        part = unit_part(unit.mission, unit.ids)
-        for epoch in range(unit.mission.clock.n_epochs if on_epoch is not None else 0):
-            on_epoch(epoch)                            # the progress bar counts it done
-        return {**part, "wall_s": 0.0}
     mission = one_worker(unit.mission) if unit.parallel else unit.mission
-    registry = unit.registry
-    if registry is None and unit.isolate is not None:
-        # a method the host never imports (--isolate) stays out of its workers too
-        registry = worker_registry(mission, prober(unit.isolate))
-    elif registry is None:
-        registry = collect_components(get_plugin_manager(optional=mission.settings.plugins))
-        restore(mission.references, registry)    # the components it names by reference
+    registry = unit.registry if unit.registry is not None else \
+        unit.backend.worker_registry(mission)
     with torch_one_thread(), run_cache(unit.cache):
-        out = run_batch(mission, registry, unit.ids, on_epoch=on_epoch, isolate=unit.isolate)
-    out["wall_s"] = time.perf_counter() - t0
+        out = run_batch(mission, registry, unit.ids, on_epoch=on_epoch, backend=unit.backend)
+    out.setdefault("wall_s", time.perf_counter() - t0)
     return out
 
 

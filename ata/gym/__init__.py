@@ -24,7 +24,7 @@ except ModuleNotFoundError as exc:        # the extra is not installed: say how 
         f"ata.gym needs the gym extra ({exc.name} is not installed): pip install 'ata[gym]' "
         "(from a checkout: pip install -e '.[gym]')", name=exc.name) from None
 
-from ata.experiment.runner import Session
+from ata.session import Session
 from ata.gym.centralised import CentralisedEnv, CentralisedVectorEnv, sample_masked
 
 if TYPE_CHECKING:

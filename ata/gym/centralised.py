@@ -50,7 +50,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ata.core.kernel import Simulation
-from ata.experiment.runner import Session
+from ata.session import Session
 from ata.core.state import Allocation, DecisionContext
 from ata.gym.episodes import Episodes, load
 from ata.runtime import memory

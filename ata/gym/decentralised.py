@@ -35,7 +35,7 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
-from ata.experiment.runner import Session
+from ata.session import Session
 from ata.core.state import DecisionContext
 from ata.gym.episodes import Episodes, load
 from ata.plugins.tr_pomdp import agents as trp

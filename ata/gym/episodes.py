@@ -16,7 +16,7 @@ import numpy as np
 from ata.core.errors import MissionError
 from ata.core.kernel import Simulation
 from ata.core.mission import Mission
-from ata.experiment.runner import BASELINE_MISSION, Session, load_session
+from ata.session import BASELINE_MISSION, Session, load_session
 from ata.core.state import Allocation, DecisionContext, EpisodeRecord
 from ata.runtime import memory
 

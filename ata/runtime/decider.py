@@ -189,7 +189,7 @@ class Decider:
 
 def realize(mission: Mission, registry: Any) -> Mission:
     """The mission with the real settings of the components the host knows only by their
-    resolved values (`ata.experiment.remote`): validated again here, from its resolved form,
+    resolved values (`ata.isolation.remote`): validated again here, from its resolved form,
     by the plugins that provide them; still without the root seed."""
     if not any(getattr(s, "as_dict", None) for s in mission.component_settings.values()):
         return mission
@@ -199,7 +199,7 @@ def realize(mission: Mission, registry: Any) -> Mission:
 
 
 def resolve(req: dict[str, Any]) -> dict[str, Any]:
-    """The host's question of `ata.experiment.remote`: the resolved settings of the components
+    """The host's question of `ata.isolation.remote`: the resolved settings of the components
     it did not load. Every plugin is loaded here (never in the host) and the whole mission is
     validated, as a worker would; the answer is plain values."""
     raw, wanted = req["mission"], [tuple(x) for x in req["components"]]
@@ -229,7 +229,7 @@ def resolve(req: dict[str, Any]) -> dict[str, Any]:
 
 def probe(req: dict[str, Any]) -> dict[str, Any]:
     """What one entry point of the ``ata`` group registers, imported alone (the host finds the
-    package of an undeclared world component so: `ata.experiment.remote`)."""
+    package of an undeclared world component so: `ata.isolation.remote`)."""
     from importlib import metadata
     eps = [ep for ep in metadata.entry_points(group="ata") if ep.name == req["entry_point"]]
     pm = pluggy.PluginManager("ata")

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ata.core.errors import MissionError
-from ata.experiment.report import save_figure
+from ata.results.report import save_figure
 from ata.model import tables
 from ata.viz.record import OUTCOMES, RIGHT, UNCLASSIFIED, UNVISITED, WRONG, Episode
 

@@ -16,8 +16,8 @@ from typing import Any
 
 from ata.core import mission as mission_mod
 from ata.core.errors import MissionError
-from ata.experiment import runner
-from ata.experiment.folders import named_folder, prepare_out_dir, writing
+from ata.session import BUILTIN_MISSION, Session, load_session
+from ata.runtime.folders import named_folder, prepare_out_dir, writing
 from ata.experiment.units import scenario_ids
 from ata.viz import draw
 from ata.viz.animate import write_animation
@@ -43,7 +43,7 @@ def mission_of(target: str | None) -> tuple[str, Path | None]:
     """The mission file to replay and the run folder it belongs to (None for a mission file;
     the built-in mission when `target` is None)."""
     if target is None:
-        return str(runner.BUILTIN_MISSION), None
+        return str(BUILTIN_MISSION), None
     path = Path(target)
     if path.is_dir():
         if not (path / RUN_MISSION).is_file():
@@ -65,7 +65,7 @@ def run_score(run_dir: Path, scenario: int) -> float | None:
     return None
 
 
-def check_whole(source: str, session: runner.Session) -> None:
+def check_whole(source: str, session: Session) -> None:
     """Refuse a run folder's resolved mission that lacks a key of its own resolution: the file
     was cut short (or written by another version), and defaults would fill the gap, replaying
     another mission than the run's."""
@@ -91,7 +91,7 @@ def show(target: str | None, scenario: int | None, overrides: list[str] | None =
     before anything runs or is written. `progress` (a progress-bar factory, as `ata run`'s)
     is told of the animation's frames."""
     source, run_dir = mission_of(target)
-    session = runner.load_session(source, list(overrides or []))
+    session = load_session(source, list(overrides or []))
     if run_dir is not None:
         check_whole(source, session)
     m = session.mission

@@ -40,10 +40,11 @@ import numpy as np
 from ata import __version__
 from ata.core.errors import MissionError
 from ata.core.mission import loads_toml
-from ata.experiment.folders import safe_name
-from ata.experiment.results import Results, read_results
+from ata.results.rows import Results, read_results
+from ata.runtime.folders import safe_name
+from ata.session import inputs_of, load_session
 
-PUBLISHED = Path(__file__).resolve().parent.parent / "published"
+PUBLISHED = Path(__file__).resolve().parent
 """The sets that ship with ata, one folder each."""
 DEFAULT = "paper"
 """The set ``published`` names alone."""
@@ -61,10 +62,14 @@ DEFINED_COLUMNS = ("score", "upper_bound", "reallocations")
 """The columns `rerun_sample` always compares (every other numeric column of the rows too)."""
 
 
+PREFIX = "published:"
+"""How a suite's method or a compare argument names published rows: ``published:NAME``."""
+
+
 def is_published(spec: str | Path) -> bool:
     """Whether a compare argument names published rows (``published``, ``published:NAME`` or
     ``published:PATH``) rather than a result folder."""
-    return str(spec) == "published" or str(spec).startswith("published:")
+    return str(spec) == "published" or str(spec).startswith(PREFIX)
 
 
 def locate(spec: str | Path) -> Path:
@@ -99,7 +104,7 @@ def world_digest(resolved: dict[str, Any], code: dict[str, str]) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def _cell(setting: str, level: str) -> str:
+def cell_name(setting: str, level: str) -> str:
     return f"{setting}/{level}"
 
 
@@ -179,7 +184,7 @@ def publish(eval_dir: str | Path, out: str | Path) -> Path:
                                        file=str(folder))
                 ids = sorted(int(i) for i in cols["scenario"][sel])
                 wall = cols["wall_s"][sel] if "wall_s" in cols else np.array([np.nan])
-                cells[_cell(s, lv)] = {"seed": str(cols["seed"][sel][0]),
+                cells[cell_name(s, lv)] = {"seed": str(cols["seed"][sel][0]),
                                        "scenarios": [ids[0], len(ids)],
                                        "model": world_digest(loads_toml(text), code),
                                        "time_per_scenario_s": round(float(np.mean(wall)), 4),
@@ -233,7 +238,6 @@ def read_published(spec: str | Path) -> tuple[Results, dict[str, Any], Path]:
 
 def current_code(mission_text: str) -> dict[str, str]:
     """The digests of the code installed now of the components a resolved mission names."""
-    from ata.experiment.runner import load_session
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "mission.toml"
         path.write_text(mission_text, encoding="utf-8")
@@ -243,8 +247,7 @@ def current_code(mission_text: str) -> dict[str, str]:
 
 def mission_inputs(mission_text: str) -> dict[str, str]:
     """The digests of the files (weights) installed now that a resolved mission's component
-    settings name (``runner.inputs_of`` of its component tables)."""
-    from ata.experiment.runner import inputs_of
+    settings name (``ata.session.inputs_of`` of its component tables)."""
     return inputs_of({name: table for name, table in loads_toml(mission_text).items()
                       if isinstance(table, dict) and name not in RESOLVED_TABLES})
 
@@ -258,7 +261,7 @@ def check_pairing(mine: Results, folder: str | Path, manifest: dict[str, Any],
     published = manifest.get("methods", {})
     cols = mine.columns
     for method, setting, level in mine.cells():
-        cell = _cell(setting, level)
+        cell = cell_name(setting, level)
         theirs = [(name, published[name]["cells"][cell]) for name in methods
                   if cell in published.get(name, {}).get("cells", {})]
         if not theirs:
@@ -311,183 +314,3 @@ def check_pairing(mine: Results, folder: str | Path, manifest: dict[str, Any],
                                            for k in changed)
                                + "): they are not this version's; evaluate it again (ata eval) "
                                "and compare with that folder")
-
-
-def rerun_sample(spec: str | Path, per_cell: int = 2, methods: list[str] | None = None,
-                 columns: tuple[str, ...] = (), cells: dict[str, list[str]] | None = None
-                 ) -> list[str]:
-    """Rerun `per_cell` scenarios of every (method, cell) of a set (the first and the last of
-    each cell's rows, then evenly between) and return one line per value that is not identical
-    to the published one (empty: every rerun row is identical). `cells`: method -> the cells
-    ("SETTING/LEVEL") to rerun of it (default: all). Rows of a secret seed are not rerun, nor
-    a row whose MILP solve reached a limit (``milp_status`` 1: where a time limit stops it
-    depends on the machine's speed); a line says so."""
-    from ata.experiment.runner import load_session, run_mission
-
-    results, manifest, _ = read_published(spec)
-    cols = results.columns
-    numeric = [c for c in results.columns if c not in ("method", "setting", "uncertainty",
-                                                       "scenario", "seed")]
-    wanted = list(columns) or numeric
-    out: list[str] = []
-    for method, entry in manifest["methods"].items():
-        if methods is not None and method not in methods:
-            continue
-        for cell, info in entry["cells"].items():
-            if cells is not None and cell not in cells.get(method, ()):
-                continue
-            setting, level = cell.split("/")
-            sel = np.nonzero(results.select(method, setting, level))[0]
-            if str(info["seed"]).startswith("secret:"):
-                out.append(f"{method} ({cell}): a secret seed; not rerun")
-                continue
-            picks = sorted({int(sel[round(k * (sel.size - 1) / max(per_cell - 1, 1))])
-                            for k in range(min(per_cell, sel.size))})
-            with tempfile.TemporaryDirectory() as tmp:
-                path = Path(tmp) / "mission.toml"
-                path.write_text(info["mission"], encoding="utf-8")
-                for row in picks:
-                    sid = int(cols["scenario"][row])
-                    if "milp_status" in cols and cols["milp_status"][row] == 1:
-                        out.append(f"{method} ({cell}) scenario {sid}: a MILP solve reached "
-                                   "a limit; not rerun")
-                        continue
-                    session = load_session(str(path), [f"mission.first_scenario={sid}",
-                                                       "mission.scenarios=1"])
-                    again = run_mission(session, workers=1).rows()[0]
-                    for c in wanted:
-                        if c not in again:
-                            continue
-                        a, b = float(cols[c][row]), float(again[c])
-                        if not (a == b or (np.isnan(a) and np.isnan(b))):
-                            out.append(f"{method} ({cell}) scenario {sid}: {c} {a!r} "
-                                       f"published, {b!r} rerun")
-    return out
-
-
-# -- a suite's method of published rows: mission = "published:METHOD" ----------------------------
-def method_spec(spec: str, base: Path, where: str, path: str) -> str:
-    """A suite's ``published:METHOD`` (the default set), ``published:SET:METHOD`` (a shipped set,
-    or a folder relative to the suite file) as ``published:FOLDER:METHOD``, FOLDER absolute."""
-    name, _, method = spec.split(":", 1)[1].rpartition(":")
-    candidates = [PUBLISHED / (name or DEFAULT)] + ([base / name, Path(name).expanduser()]
-                                                    if name else [])
-    folder = next((c for c in candidates if (c / MANIFEST).is_file()), None)
-    if folder is None:
-        shipped = sorted(p.parent.name for p in PUBLISHED.glob(f"*/{MANIFEST}"))
-        raise MissionError(where, "mission", f"{spec!r}: no published rows "
-                           f"{name or DEFAULT!r}; shipped sets: "
-                           f"{', '.join(shipped) or '(none in this version yet)'}; or "
-                           "published:FOLDER:METHOD, a folder that `ata publish` wrote",
-                           file=path)
-    manifest = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))
-    if method not in manifest.get("methods", {}):
-        raise MissionError(where, "mission", f"{spec!r}: the published rows in {folder} hold "
-                           f"no method {method!r}; they hold: "
-                           + ", ".join(manifest.get("methods", {})), file=path)
-    return f"published:{folder.resolve()}:{method}"
-
-
-def _split_source(source: str) -> tuple[Path, str]:
-    folder, _, method = source.split(":", 1)[1].rpartition(":")
-    return Path(folder), method
-
-
-def published_session(source: str, overrides: list[str]) -> Any:
-    """The session of a published method at the cell the suite's `overrides` choose (its
-    published resolved mission, with the evaluation's scenarios and seed), checked: its
-    scenarios among the published ones, its code and weights the installed ones."""
-    from ata.core.mission import parse_override
-    from ata.experiment.runner import load_session
-
-    folder, method = _split_source(source)
-    entry = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))["methods"][method]
-    keys = {tuple(parse_override(t)[0]): parse_override(t)[1] for t in overrides}
-    setting, level = keys.get(("mission", "setting")), keys.get(("mission", "uncertainty"))
-    cells = entry["cells"]
-    if setting is None or level is None:
-        if len(cells) != 1:
-            raise MissionError("", None, f"published {method} has rows at {', '.join(cells)}: "
-                               "give the suite's settings and uncertainty")
-        setting, level = next(iter(cells)).split("/")
-    info = cells.get(_cell(setting, level))
-    if info is None:
-        raise MissionError("", None, f"published {method} has no rows at setting {setting}, "
-                           f"{level} uncertainty; it has: {', '.join(cells)}")
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "mission.toml"
-        path.write_text(info["mission"], encoding="utf-8")
-        session = load_session(str(path), [t for t in overrides if parse_override(t)[0][1] in
-                                           ("scenarios", "seed", "first_scenario")])
-    m = session.mission
-    m.source = f"published:{folder}:{method}"
-    first, count = info["scenarios"]
-    lo, hi = m.settings.first_scenario, m.settings.first_scenario + m.settings.scenarios
-    if str(m.seed_label) != str(info["seed"]) or lo < first or hi > first + count:
-        raise MissionError("", None, f"published {method} ({setting}, {level}) holds seed "
-                           f"{info['seed']}, ids {first}..{first + count - 1}; the evaluation "
-                           f"asks for seed {m.seed_label}, ids {lo}..{hi - 1}: give the "
-                           "published seed and at most its scenarios")
-    code, weights = session.code(), session.inputs()
-    changed = [k for k, v in entry.get("code", {}).items() if code.get(k) not in (None, v)]
-    changed += [k for k, v in info.get("inputs", {}).items() if weights.get(k) != v]
-    if changed:
-        raise MissionError("", None, f"the published rows of {method} were made with other code "
-                           f"or weights than are installed now ({', '.join(changed)}): "
-                           "evaluate the method itself instead")
-    return session
-
-
-def check_models(jobs: list[Any]) -> None:
-    """Refuse an evaluation whose methods run in another model than a published method they
-    are paired with in the same (setting, level)."""
-    for pub in jobs:
-        if not pub.mission.source.startswith("published:"):
-            continue
-        folder, method = _split_source(pub.mission.source)
-        manifest = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))
-        model = manifest["methods"][method]["cells"][_cell(pub.setting, pub.level)]["model"]
-        for job in jobs:
-            if job.mission.source.startswith("published:") or \
-                    (job.setting, job.level) != (pub.setting, pub.level):
-                continue
-            mine = world_digest(job.mission.resolved(), job.session.code())
-            if mine != model:
-                raise MissionError(f"method {job.method!r}", None, f"runs in another model than "
-                                   f"the published {method} ({job.setting}, {job.level}): model "
-                                   f"revision {mine} here, {model} there (the world components' "
-                                   "code or settings, or the team, clock or uncertainty, "
-                                   "differ); the rows cannot be paired", file=job.source)
-
-
-_ROWS_READ: dict[Path, Results] = {}
-
-
-def unit_part(mission: Any, ids: Any) -> dict[str, Any]:
-    """A work unit of a published method: its rows read from the set, as a unit's results
-    (`ata.experiment.units.run_batch`), in the order of `ids`; nothing is run."""
-    folder, method = _split_source(mission.source)
-    if folder not in _ROWS_READ:
-        _ROWS_READ[folder] = read_published(folder)[0]
-    rows = _ROWS_READ[folder]
-    c = rows.columns
-    sel = np.nonzero(rows.select(method, mission.settings.setting,
-                                 mission.settings.uncertainty))[0]
-    where = {int(c["scenario"][k]): k for k in sel}
-    missing = [int(i) for i in ids if int(i) not in where]
-    if missing:
-        raise MissionError("", None, f"published {method} has no row for scenario {missing[0]}",
-                           file=str(folder))
-    pick = np.array([where[int(i)] for i in ids], dtype=np.int64)
-    out: dict[str, Any] = {"scenario": np.asarray(ids), "total": c["score"][pick].astype(float),
-                           "upper_bound": c["upper_bound"][pick].astype(float),
-                           "reallocations": c["reallocations"][pick].astype(np.int64)}
-    for name, values in c.items():
-        if name in ("method", "setting", "uncertainty", "scenario", "seed", "score",
-                    "upper_bound", "fraction_of_u", "reallocations"):
-            continue
-        column = values[pick].astype(float)
-        if not np.all(np.isnan(column)):      # a metric another method has, this one not
-            out[f"m:{name}"] = column
-    out["warnings"] = []
-    return out

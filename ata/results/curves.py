@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from ata.core.errors import MissionError
-from ata.experiment.folders import prepare_out_dir, writing
-from ata.experiment.report import fmt, md_table, pyplot, save_figure
+from ata.runtime.folders import prepare_out_dir, writing
+from ata.results.report import fmt, md_table, pyplot, save_figure
 
 LOG_FILE = "log.csv"
 CURVE_PANELS = (
@@ -73,7 +73,7 @@ class TrainingLog:
 def is_training_folder(path: str | Path) -> bool:
     """A folder with a log.csv (from `ata train`) and no results.csv (from `ata eval`), or a
     folder of seeds (`ata train --seeds`)."""
-    from ata.training.seeds import is_seeds_folder
+    from ata.training.folders import is_seeds_folder
     path = Path(path)
     return ((path / LOG_FILE).is_file() and not (path / "results.csv").exists()) \
         or is_seeds_folder(path)
@@ -266,7 +266,7 @@ def curves_rows(log: TrainingLog) -> tuple[list[str], list[list[str]]]:
     cumulative wall time at its end (where the log has those columns). Of a folder of seeds:
     each seed's best held-out validation."""
     if not isinstance(log, TrainingLog):
-        from ata.experiment.seed_curves import best_rows
+        from ata.results.seed_curves import best_rows
         return best_rows(log)
     panels = log.panels()
     speed, score, held = (panels.get(k, []) for k in ("speed", "score", "held_out"))
@@ -331,10 +331,10 @@ def write_curves(run_dir: str | Path, out_dir: str | Path | None = None,
                  with_figures: bool = True) -> tuple[TrainingLog, list[Path]]:
     """Read a training run folder's log.csv; write fig_curves.{png,svg} (unless told not to)
     and curves.md into `out_dir`, by default the run folder. A folder of seeds: its curves
-    across seeds (`ata.experiment.seed_curves`)."""
-    from ata.training.seeds import is_seeds_folder
+    across seeds (`ata.results.seed_curves`)."""
+    from ata.training.folders import is_seeds_folder
     if is_seeds_folder(run_dir):
-        from ata.experiment.seed_curves import write_seed_report
+        from ata.results.seed_curves import write_seed_report
         return write_seed_report(run_dir, out_dir, with_figures)
     log = read_log(run_dir)
     out = Path(out_dir) if out_dir is not None else log.path.parent

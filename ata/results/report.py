@@ -1,5 +1,5 @@
 """`ata report`: the tables and figures of an evaluation (`ata eval`'s results.csv, read with
-`ata.experiment.results`).
+`ata.results.rows`).
 
 Per (team setting, uncertainty level) and method: the mean total team performance with its 95%
 percentile-bootstrap confidence interval over scenarios, the mean fraction of the upper bound U,
@@ -7,8 +7,8 @@ the share of POIs classified, the paired difference reference - method on the sa
 (the same setting, level, seed and scenario id) with its 95% bootstrap confidence interval, and
 P(reference beats method): the share of those paired scenarios where the reference scores more,
 ties counting half. Its figures add the paired difference method - reference of every method
-against one reference (`fig_paired`); `ata.experiment.results_md` gives the tables of
-docs/RESULTS.md. A training run folder's curves are `ata.experiment.curves`'.
+against one reference (`fig_paired`); `ata.results.markdown` gives the tables of
+docs/RESULTS.md. A training run folder's curves are `ata.results.curves`'.
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ from typing import Any
 import numpy as np
 
 from ata.core.errors import MissionError
-from ata.experiment.folders import prepare_out_dir, writing
-from ata.experiment.results import (BOOTSTRAP_SEED, RESAMPLES, Results, beat_probability,
+from ata.runtime.folders import prepare_out_dir, writing
+from ata.results.rows import (BOOTSTRAP_SEED, RESAMPLES, Results, beat_probability,
                                     bootstrap_ci, nanmean, paired_values, read_results)
 
 DEFAULT_REFERENCE = "ATA-HRL"

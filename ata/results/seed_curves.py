@@ -13,16 +13,16 @@ from pathlib import Path
 
 import numpy as np
 
-from ata.experiment.curves import CURVE_PANELS, TrainingLog, read_log
-from ata.experiment.folders import prepare_out_dir, writing
-from ata.experiment.report import md_table, pyplot, save_figure
+from ata.results.curves import CURVE_PANELS, TrainingLog, read_log
+from ata.runtime.folders import prepare_out_dir, writing
+from ata.results.report import md_table, pyplot, save_figure
 
 RESAMPLES = 2000
 
 
 @dataclass
 class SeedLogs:
-    """The logs of a folder of seeds (`ata.training.seeds`), in seed order."""
+    """The logs of a folder of seeds (`ata.training.folders`), in seed order."""
 
     path: Path                     # the folder
     seeds: list[int]
@@ -31,7 +31,7 @@ class SeedLogs:
 
 
 def read_seed_logs(folder: str | Path) -> SeedLogs:
-    from ata.training.seeds import read_seeds
+    from ata.training.folders import read_seeds
     data = read_seeds(folder)
     logs = [read_log(d) for d in data["dirs"]]
     return SeedLogs(Path(folder), data["seeds"], logs, data["dirs"])
@@ -149,7 +149,7 @@ def paired_rows(seeds: SeedLogs, eval_dir: Path, reference: str = "greedy"):
     """Each seed's best weights minus `reference` on the same scenarios (mean, 95% bootstrap
     CI over scenarios), and the IQM of the seeds' mean differences with a 95% bootstrap CI that
     resamples seeds and, within each, scenarios."""
-    from ata.experiment.results import bootstrap_ci, paired_values, read_results
+    from ata.results.rows import bootstrap_ci, paired_values, read_results
     res = read_results(eval_dir)
     header = ["seed", "method", "cell", "scenarios", f"mean - {reference} (95% CI)"]
     rows, diffs = [], []

@@ -1,7 +1,7 @@
 """The host's stand-ins for isolated decision components, forwarding each call to their process.
 
 They fill the decision slots of a `Simulation` (its ``overrides``), implement the same hooks,
-and forward each call to the batch's sandboxed decision process (`ata.experiment.isolate`).
+and forward each call to the batch's sandboxed decision process (`ata.isolation.process`).
 
 What crosses, per batch: once, the decision generator's keys, the published constants and I;
 once per epoch, the observed S; per call, the epoch, time, allocation in force, reallocatable
@@ -23,7 +23,7 @@ from ata.core.kernel import Simulation
 from ata.core.mission import Mission
 from ata.core.registry import Register
 from ata.core.state import Allocation
-from ata.experiment.isolate import (TIMEOUT_COLUMN, DecisionProcess, DecisionTimeout,
+from ata.isolation.process import (TIMEOUT_COLUMN, DecisionProcess, DecisionTimeout,
                                     Isolation, acquire, release)
 
 

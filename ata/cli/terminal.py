@@ -15,7 +15,7 @@ from rich.progress import (BarColumn, Progress, ProgressColumn, TaskProgressColu
 from rich.table import Column, Table
 from rich.text import Text
 
-from ata.experiment.tables import layout
+from ata.cli.tables import layout
 
 
 WORD_LIMIT = 120
@@ -186,7 +186,7 @@ def key_values(title: str, rows: list[tuple[str, str]]) -> None:
 
 def report_tables(report) -> None:
     """An evaluation report's tables, one per (setting, level) (`report.table_rows`)."""
-    from ata.experiment.report import table_rows, title
+    from ata.results.report import table_rows, title
 
     for setting, level in report.groups():
         table(title(setting, level), *table_rows(report, setting, level, short=True))

@@ -1,6 +1,6 @@
 """Training folders as users meet them: one run's folder (what `ata run DIR` and a suite's
 method evaluate: its best weights), and a folder of several seeds (`ata train --seeds N`), each
-seed a run folder of its own, ``seed-S``, trained side by side on the executors of `ata eval`.
+seed a run folder of its own, ``seed-S``, trained side by side (`ata.experiment.training`).
 
 A folder of seeds holds ``seeds.json`` (the seeds, the trainer, the training mission and its
 overrides) and ``seed-S/`` for each seed S; ``ata train --resume DIR`` carries every seed on from
@@ -13,7 +13,10 @@ import json
 from pathlib import Path
 from typing import Any
 
+import tomli_w
+
 from ata.core.errors import MissionError
+from ata.core.mission import read_toml
 
 SEEDS_FILE = "seeds.json"
 RESOLVED = "mission.resolved.toml"
@@ -87,7 +90,6 @@ def trained_mission(folder: str | Path) -> str:
     if not (folder / "best.pt").is_file():
         raise MissionError("", None, "holds no best.pt yet: train on (ata train --resume "
                            f"{folder}) until a validation writes one", file=str(folder))
-    from ata.core.mission import read_toml
     for table, settings in read_toml(folder / RESOLVED).items():
         value = settings.get("checkpoint") if isinstance(settings, dict) else None
         if isinstance(value, str) and value.endswith("best.pt") \
@@ -107,26 +109,6 @@ def trained_methods(folder: str | Path, label: str) -> list[tuple[str, str]]:
         return [(f"{label} seed {s}", trained_mission(d))
                 for s, d in zip(data["seeds"], data["dirs"])]
     return [(label, trained_mission(folder))]
-
-
-def train_seed(unit: dict[str, Any]) -> dict[str, Any]:
-    """One seed's run, in a worker (process pool or Ray): its folder's resolved mission,
-    trained (or resumed, if its folder has a log) to the end, quietly; its report."""
-    from ata.experiment import runner
-    from ata.training.run import TrainRun
-
-    folder = Path(unit["dir"])
-    resume = (folder / "log.csv").is_file()
-    session = runner.load_session(str(folder / RESOLVED))
-    trainer = runner.build_trainer(session)
-    run = TrainRun(folder, session.mission.to_toml(), trainer.log_fields, resume=resume)
-    try:
-        report = trainer.run(run, resume=resume)
-    finally:
-        run.close()
-    write_report(folder, report)
-    return {"seed": unit["seed"], "dir": str(folder), "best_eval": report.get("best_eval"),
-            "wall_s": report.get("wall_s")}
 
 
 def write_report(folder: Path, report: dict[str, Any]) -> None:
@@ -151,7 +133,6 @@ SUITE_FILE = "suite.toml"
 
 def write_suite(folder: Path, seeds: list[int], label: str, setting: str, level: str) -> None:
     """A folder of seeds' suite.toml: each seed a method, paired with greedy."""
-    import tomli_w
     methods = [f"{label} seed {s}" for s in seeds]
     suite = {"suite": {"name": f"{label}-seeds", "settings": [setting], "uncertainty": [level],
                        "pairs": [[m, "greedy"] for m in methods]},

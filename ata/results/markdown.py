@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ata.experiment.report import default_pairs, md_table
-from ata.experiment.results import (BOOTSTRAP_SEED, RESAMPLES, Results, bootstrap_ci, nanmean,
+from ata.results.report import default_pairs, md_table
+from ata.results.rows import (BOOTSTRAP_SEED, RESAMPLES, Results, bootstrap_ci, nanmean,
                                     paired_values)
 from ata.experiment.runlog import machine_text
 

@@ -1,6 +1,6 @@
 """`--isolate`: a mission's decision components run apart, in a sandboxed process of their own.
 
-The host's kernel holds proxies in their slots (`ata.experiment.proxies`).
+The host's kernel holds proxies in their slots (`ata.isolation.proxies`).
 
 The host keeps the mission, the root seed and the world (the `Simulation` with its world
 components). Each batch has a decision process (`ata.runtime.decider`, in the sandbox of
@@ -37,7 +37,7 @@ from ata.core.errors import ContractError, MissionError
 from ata.core.kernel import DECISION_SLOTS, is_reference
 from ata.core.mission import SLOT_KINDS, Mission
 from ata.core.registry import Register
-from ata.experiment.remote import RemoteComponent, code_locations
+from ata.isolation.remote import RemoteComponent, code_locations
 from ata.runtime import sandbox
 from ata.runtime.frames import FrameError, HostPipe, PeerGone, PeerTimeout
 from ata.runtime.inputs import resolve
@@ -58,21 +58,6 @@ class Isolation:
     def key(self) -> dict[str, Any]:
         """What a plan key holds of it: a timeout can change rows, isolation never should."""
         return {"isolate": True, "decision_timeout_s": self.decision_timeout_s}
-
-
-def require_sandbox(timeout_s: float = DEFAULT_DECISION_TIMEOUT) -> Isolation:
-    """The isolation of `--isolate`; a MissionError (one line, exit 2) where no sandbox can
-    run, saying why and how to get one. It starts a decision process at once (`prestart`), so
-    that its start overlaps the loading and checking of the mission."""
-    if not timeout_s > 0:
-        raise MissionError("--decision-timeout", None, "must be a positive number of seconds")
-    reason = sandbox.unavailable()
-    if reason is not None:
-        raise MissionError("--isolate", None, reason)
-    isolation = Isolation(decision_timeout_s=float(timeout_s),
-                          startup_timeout_s=max(300.0, float(timeout_s)))
-    prestart(isolation)
-    return isolation
 
 
 class ChildFailed(ContractError):
@@ -164,7 +149,7 @@ def _ask_once(isolation: Isolation, req: dict[str, Any], what: str,
 
 
 def resolver(isolation: Isolation):
-    """The `resolve` of `ata.experiment.remote.isolated_registry`: a sandboxed process loads
+    """The `resolve` of `ata.isolation.remote.isolated_registry`: a sandboxed process loads
     every plugin, validates the mission and answers the resolved settings of the components the
     host did not load."""
     def resolve(raw: dict[str, Any], source: str, wanted: list[tuple[str, str]],
@@ -175,7 +160,7 @@ def resolver(isolation: Isolation):
 
 
 def prober(isolation: Isolation):
-    """The `probe` of `ata.experiment.remote`: what one ``ata``-group entry point registers,
+    """The `probe` of `ata.isolation.remote`: what one ``ata``-group entry point registers,
     as a sandboxed process that imported it alone says (cached per process and entry point:
     the installed packages do not change during a run)."""
     def probe(entry_point: str) -> Any:
