@@ -119,12 +119,28 @@ def for_team(settings: Any, team: Any) -> Any:
     return fit(team) if callable(fit) else settings
 
 
+@typing.runtime_checkable
+class TableSettings(typing.Protocol):
+    """A component's ``Settings`` that validates its table itself instead of being a dataclass
+    whose fields are checked here (a component whose settings were validated in another
+    process, say); its values then give ``as_dict()``."""
+
+    def from_table(self, table: dict[str, Any] | None, where: str) -> Any: ...
+
+
+@typing.runtime_checkable
+class SettingsValues(typing.Protocol):
+    """Settings values that are no dataclass: what a `TableSettings` gives."""
+
+    def as_dict(self) -> dict[str, Any]: ...
+
+
 def build_settings(cls: type, table: dict[str, Any] | None, where: str) -> Any:
     """Validate a TOML table against a settings dataclass and return the filled instance.
 
     :param where: the table's name in the mission file, for error messages ("[greedy]").
     """
-    if hasattr(cls, "from_table"):       # settings validated elsewhere (--isolate's remote ones)
+    if isinstance(cls, TableSettings):
         return cls.from_table(table, where)
     table = dict(table or {})
     fields = {f.name: f for f in dataclasses.fields(cls)}
@@ -146,7 +162,7 @@ def build_settings(cls: type, table: dict[str, Any] | None, where: str) -> Any:
 
 def settings_dict(obj: Any) -> dict[str, Any]:
     """The settings as a TOML-ready dict (None values left out: TOML has no null)."""
-    if hasattr(obj, "as_dict"):         # settings validated elsewhere (--isolate's remote ones)
+    if isinstance(obj, SettingsValues):
         return {k: v for k, v in obj.as_dict().items() if v is not None}
     return {k: v for k, v in dataclasses.asdict(obj).items() if v is not None}
 

@@ -41,6 +41,7 @@ from ata.isolation.remote import RemoteComponent, code_locations
 from ata.runtime import sandbox
 from ata.runtime.frames import FrameError, HostPipe, PeerGone, PeerTimeout
 from ata.runtime.inputs import resolve
+from ata.runtime.messages import Op
 
 DEFAULT_DECISION_TIMEOUT = 60.0
 """Seconds a decision call (one phase of one batch) may take by default."""
@@ -154,7 +155,7 @@ def resolver(isolation: Isolation):
     host did not load."""
     def resolve(raw: dict[str, Any], source: str, wanted: list[tuple[str, str]],
                 files: list[str] = (), folders: list[str] = ()) -> Any:
-        return _ask_once(isolation, {"op": "resolve", "mission": raw, "source": source,
+        return _ask_once(isolation, {"op": Op.RESOLVE, "mission": raw, "source": source,
                                      "components": wanted}, RESOLVE, files, folders)
     return resolve
 
@@ -167,7 +168,7 @@ def prober(isolation: Isolation):
         if entry_point not in _PROBED:
             try:
                 _PROBED[entry_point] = _ask_once(
-                    isolation, {"op": "probe", "entry_point": entry_point},
+                    isolation, {"op": Op.PROBE, "entry_point": entry_point},
                     f"importing the plugin {entry_point!r} alone")
             except ChildFailed:                   # one that fails to load provides nothing
                 _PROBED[entry_point] = {"components": []}
@@ -278,7 +279,7 @@ class DecisionProcess:
         try:
             # the mission pickled apart: its settings classes may come from the method's own
             # module, which the process can import once it has the paths
-            self.pipe.send({"op": "init", "mission": blob, "modules": modules, "paths": paths,
+            self.pipe.send({"op": Op.INIT, "mission": blob, "modules": modules, "paths": paths,
                             "only": only},
                            time.monotonic() + self.isolation.startup_timeout_s)
         except (PeerGone, PeerTimeout):
@@ -348,7 +349,7 @@ class DecisionProcess:
         killed at once after an error or Ctrl-C, when it may be busy."""
         if ask and self.alive and self.proc.poll() is None:
             try:
-                self.pipe.send({"op": "close"}, time.monotonic() + 1.0)
+                self.pipe.send({"op": Op.CLOSE}, time.monotonic() + 1.0)
                 self.proc.wait(timeout=1.0)
             except (PeerGone, PeerTimeout, subprocess.TimeoutExpired):
                 pass

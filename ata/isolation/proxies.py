@@ -19,12 +19,13 @@ import numpy as np
 
 from ata import hookimpl
 from ata.core.errors import ContractError
-from ata.core.kernel import Simulation
+from ata.core.kernel import DECISION_SLOTS, Simulation
 from ata.core.mission import Mission
 from ata.core.registry import Register
 from ata.core.state import Allocation
 from ata.isolation.process import (TIMEOUT_COLUMN, DecisionProcess, DecisionTimeout,
                                     Isolation, acquire, release)
+from ata.runtime.messages import ALLOCATION, Op
 
 
 COLUMN = re.compile(r"[a-z][a-z0-9_]{0,63}")
@@ -49,7 +50,7 @@ class Link:
         self.timeouts = 0
         self.timed_out: str | None = None     # what timed out, once one did
 
-    def request(self, op: str, epoch: int, time: float, previous: Allocation | None,
+    def request(self, op: Op, epoch: int, time: float, previous: Allocation | None,
                 observed: Any, inherent: Any, rng: Any, channel: Any, **extra: Any
                 ) -> dict[str, Any]:
         req = {"op": op, "epoch": int(epoch), "time": float(time), "allocation": previous,
@@ -80,7 +81,7 @@ class Link:
     def allocation(self, arrays: dict[str, np.ndarray], where: str) -> Allocation:
         shape = (self.batch, self.mission.sizes.tasks)
         fields = []
-        for f in ("robot", "navigator", "classifier"):
+        for f in ALLOCATION:
             arr = arrays.get(f)
             if arr is None or arr.shape != shape or not np.issubdtype(arr.dtype, np.integer):
                 got = "nothing" if arr is None else f"{arr.dtype} {arr.shape}"
@@ -95,7 +96,7 @@ class _Proxy:
         self.link, self.slot = link, slot
         self.component_name = name
 
-    def _ctx_request(self, op: str, ctx: Any, **extra: Any) -> dict[str, Any]:
+    def _ctx_request(self, op: Op, ctx: Any, **extra: Any) -> dict[str, Any]:
         return self.link.request(op, ctx.epoch, ctx.time, ctx.previous, ctx.observed,
                                  ctx.inherent, ctx.rng, ctx.channel,
                                  reallocatable=np.asarray(ctx.reallocatable, dtype=bool), **extra)
@@ -107,7 +108,7 @@ class ReconstructorsProxy(_Proxy):
     @hookimpl
     def ata_reconstruct(self, sim, obs, inherent, out) -> None:
         link = self.link
-        req = link.request("reconstruct", sim.epoch, sim.now, sim.allocation, obs, inherent,
+        req = link.request(Op.RECONSTRUCT, sim.epoch, sim.now, sim.allocation, obs, inherent,
                            sim.rng, sim.channel)
         answer = link.call(req, f"reconstructors {self.component_name}", fatal=sim.epoch == 0)
         if answer is None:
@@ -126,12 +127,12 @@ class InitialProxy(_Proxy):
     @hookimpl
     def ata_initial_allocation(self, ctx):
         where = f"initial policy {self.component_name!r}"
-        _, arrays = self.link.call(self._ctx_request("initial", ctx), where, fatal=True)
+        _, arrays = self.link.call(self._ctx_request(Op.INITIAL, ctx), where, fatal=True)
         return self.link.allocation(arrays, where)
 
     @hookimpl
     def ata_trained_on(self):
-        header, _ = self.link.process.call({"op": "trained_on"}, self.link.limit,
+        header, _ = self.link.process.call({"op": Op.TRAINED_ON}, self.link.limit,
                                            "ata_trained_on")
         out = []
         for ranges in header.get("ranges", []):
@@ -146,7 +147,7 @@ class InitialProxy(_Proxy):
     @hookimpl
     def ata_episode_scored(self, episode) -> None:
         link = self.link
-        answer = link.call({"op": "episode_scored", "epoch": -1, "time": 0.0,
+        answer = link.call({"op": Op.EPISODE_SCORED, "epoch": -1, "time": 0.0,
                             "r_perf": np.asarray(episode.r_perf),
                             "reallocated": np.asarray(episode.reallocated),
                             "allocations": np.asarray(episode.allocations)},
@@ -174,7 +175,7 @@ class InitialProxy(_Proxy):
 class ConditionProxy(_Proxy):
     @hookimpl
     def ata_should_reallocate(self, ctx):
-        answer = self.link.call(self._ctx_request("condition", ctx),
+        answer = self.link.call(self._ctx_request(Op.CONDITION, ctx),
                                 f"condition policy {self.component_name!r}", fatal=False)
         if answer is None:
             return np.zeros(self.link.batch, dtype=bool)   # the allocation in force stays
@@ -189,7 +190,7 @@ class ReallocationProxy(_Proxy):
     @hookimpl
     def ata_reallocate(self, ctx, active):
         where = f"reallocation policy {self.component_name!r}"
-        answer = self.link.call(self._ctx_request("reallocate", ctx,
+        answer = self.link.call(self._ctx_request(Op.REALLOCATE, ctx,
                                                   active=np.asarray(active, dtype=bool)),
                                 where, fatal=False)
         if answer is None:
@@ -197,17 +198,24 @@ class ReallocationProxy(_Proxy):
         return self.link.allocation(answer[1], where)
 
 
+PROXIES: dict[str, type[_Proxy]] = {"reconstructors": ReconstructorsProxy,
+                                    "initial": InitialProxy, "condition": ConditionProxy,
+                                    "reallocation": ReallocationProxy}
+"""The proxy of each decision slot of the kernel; each forwards its slot's operation
+(`ata.runtime.messages.SLOT_OPERATIONS`)."""
+
+
 def overrides(link: Link, mission: Mission) -> dict[str, Any]:
-    """The proxies for a `Simulation`'s ``overrides``, one per decision slot (the
-    reconstructors' one only where the mission lists some)."""
-    s = mission.slots
-    out: dict[str, Any] = {"initial": InitialProxy(link, "initial", s.initial),
-                           "condition": ConditionProxy(link, "condition", s.condition),
-                           "reallocation": ReallocationProxy(link, "reallocation",
-                                                             s.reallocation)}
-    if s.reconstructors:
-        out["reconstructors"] = ReconstructorsProxy(link, "reconstructors",
-                                                    ",".join(s.reconstructors))
+    """The proxies for a `Simulation`'s ``overrides``, one per decision slot the mission fills
+    (the reconstructors' one only where it lists some)."""
+    out: dict[str, Any] = {}
+    for slot in DECISION_SLOTS:
+        value = getattr(mission.slots, slot)
+        if isinstance(value, list):
+            if not value:
+                continue
+            value = ",".join(value)
+        out[slot] = PROXIES[slot](link, slot, value)
     return out
 
 

@@ -72,7 +72,8 @@ class RemoteSettings:
 
 
 class _RemoteSettingsClass:
-    """A remote component's ``Settings``: it takes the table the decision process validated."""
+    """A remote component's ``Settings`` (a ``ata.core.settings.TableSettings``): it takes the
+    table the decision process validated."""
 
     def __init__(self, settings: RemoteSettings):
         self.settings = settings

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import copy
 import importlib
+from importlib import metadata
 import os
 import pickle
 import shutil
@@ -38,6 +39,7 @@ from ata.core.rng import StreamRNG
 from ata.core.settings import settings_dict
 from ata.core.state import Allocation, DecisionContext, DecisionView, EpisodeOutcome
 from ata.runtime.frames import child_recv, child_send
+from ata.runtime.messages import ALLOCATION, OPERATIONS, Op
 
 
 def _names(value: str | list[str]) -> list[str]:
@@ -148,43 +150,55 @@ class Decider:
                                reallocatable=_frozen(req["reallocatable"]), rng=self.rng,
                                settings=self.settings, channel=self.channel)
 
+    HANDLERS = {Op.RECONSTRUCT: "_reconstruct", Op.INITIAL: "_allocate",
+                Op.REALLOCATE: "_allocate", Op.CONDITION: "_condition",
+                Op.TRAINED_ON: "_trained_on", Op.EPISODE_SCORED: "_episode_scored"}
+    """The method that answers each decision operation."""
+
     def handle(self, req: dict[str, Any]) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-        op = req["op"]
+        """Answer one decision operation (`ata.runtime.messages`): a header and named arrays."""
         self.take(req)
-        if op == "reconstruct":
-            view = DecisionView(SimpleNamespace(
-                batch_size=self.rng.batch_size, sizes=self.sizes, clock=self.clock,
-                epoch=req["epoch"], now=req["time"], allocation=req["allocation"],
-                channel=self.channel), self.rng)
-            recon: dict[str, np.ndarray] = {}
-            self.pm.hook.ata_reconstruct(sim=view, obs=self.observed, inherent=self.inherent,
-                                         out=recon)
-            self.recon, self.recon_epoch = recon, req["epoch"]
-            return {}, {k: np.asarray(v) for k, v in recon.items()}
-        if op in ("initial", "reallocate"):
-            slot = "initial" if op == "initial" else "reallocation"
-            kwargs = {"active": req["active"]} if op == "reallocate" else {}
-            alloc = self.callers[slot](ctx=self.context(req), **kwargs)
-            if not isinstance(alloc, Allocation):
-                raise ContractError(f"{slot} policy returned {type(alloc).__name__}, not an "
-                                    "Allocation")
-            return {}, {f: np.asarray(getattr(alloc, f)) for f in
-                        ("robot", "navigator", "classifier")}
-        if op == "condition":
-            return {}, {"active": np.asarray(self.callers["condition"](ctx=self.context(req)),
-                                             dtype=bool)}
-        if op == "trained_on":
-            ranges = [[[int(x) for x in r] for r in (found or [])]
-                      for found in self.pm.hook.ata_trained_on()]
-            return {"ranges": ranges}, {}
-        if op == "episode_scored":
-            outcome = EpisodeOutcome(r_perf=_frozen(req["r_perf"]),
-                                     reallocated=_frozen(req["reallocated"]),
-                                     allocations=_frozen(req["allocations"]))
-            self.pm.hook.ata_episode_scored(episode=outcome)
-            return ({"warnings": [str(w) for w in outcome.warnings]},
-                    {k: np.asarray(v, dtype=float) for k, v in outcome.metrics.items()})
-        raise ValueError(f"unknown request {op!r}")
+        name = self.HANDLERS.get(req["op"])
+        if name is None:
+            raise ValueError(f"unknown request {req['op']!r}")
+        return getattr(self, name)(req)
+
+    def _reconstruct(self, req: dict[str, Any]) -> tuple[dict, dict[str, np.ndarray]]:
+        view = DecisionView(SimpleNamespace(
+            batch_size=self.rng.batch_size, sizes=self.sizes, clock=self.clock,
+            epoch=req["epoch"], now=req["time"], allocation=req["allocation"],
+            channel=self.channel), self.rng)
+        recon: dict[str, np.ndarray] = {}
+        self.pm.hook.ata_reconstruct(sim=view, obs=self.observed, inherent=self.inherent,
+                                     out=recon)
+        self.recon, self.recon_epoch = recon, req["epoch"]
+        return {}, {k: np.asarray(v) for k, v in recon.items()}
+
+    def _allocate(self, req: dict[str, Any]) -> tuple[dict, dict[str, np.ndarray]]:
+        slot = OPERATIONS[req["op"]].slot
+        kwargs = {"active": req["active"]} if req["op"] == Op.REALLOCATE else {}
+        alloc = self.callers[slot](ctx=self.context(req), **kwargs)
+        if not isinstance(alloc, Allocation):
+            raise ContractError(f"{slot} policy returned {type(alloc).__name__}, not an "
+                                "Allocation")
+        return {}, {f: np.asarray(getattr(alloc, f)) for f in ALLOCATION}
+
+    def _condition(self, req: dict[str, Any]) -> tuple[dict, dict[str, np.ndarray]]:
+        return {}, {"active": np.asarray(self.callers["condition"](ctx=self.context(req)),
+                                         dtype=bool)}
+
+    def _trained_on(self, req: dict[str, Any]) -> tuple[dict, dict[str, np.ndarray]]:
+        ranges = [[[int(x) for x in r] for r in (found or [])]
+                  for found in self.pm.hook.ata_trained_on()]
+        return {"ranges": ranges}, {}
+
+    def _episode_scored(self, req: dict[str, Any]) -> tuple[dict, dict[str, np.ndarray]]:
+        outcome = EpisodeOutcome(r_perf=_frozen(req["r_perf"]),
+                                 reallocated=_frozen(req["reallocated"]),
+                                 allocations=_frozen(req["allocations"]))
+        self.pm.hook.ata_episode_scored(episode=outcome)
+        return ({"warnings": [str(w) for w in outcome.warnings]},
+                {k: np.asarray(v, dtype=float) for k, v in outcome.metrics.items()})
 
 
 def realize(mission: Mission, registry: Any) -> Mission:
@@ -230,7 +244,6 @@ def resolve(req: dict[str, Any]) -> dict[str, Any]:
 def probe(req: dict[str, Any]) -> dict[str, Any]:
     """What one entry point of the ``ata`` group registers, imported alone (the host finds the
     package of an undeclared world component so: `ata.isolation.remote`)."""
-    from importlib import metadata
     eps = [ep for ep in metadata.entry_points(group="ata") if ep.name == req["entry_point"]]
     pm = pluggy.PluginManager("ata")
     pm.add_hookspecs(hookspecs)
@@ -244,14 +257,14 @@ def serve(fd_in: int, fd_out: int) -> None:
     decider: Decider | None = None
     while True:
         req = child_recv(fd_in)
-        if req is None or req.get("op") == "close":
+        if req is None or req.get("op") == Op.CLOSE:
             return
         try:
-            if req["op"] in ("resolve", "probe"):
+            if req["op"] in (Op.RESOLVE, Op.PROBE):
                 sys.path[:0] = req.get("paths", [])
-                child_send(fd_out, (resolve if req["op"] == "resolve" else probe)(req))
+                child_send(fd_out, (resolve if req["op"] == Op.RESOLVE else probe)(req))
                 continue
-            if req["op"] == "init":
+            if req["op"] == Op.INIT:
                 sys.path[:0] = req.get("paths", [])
                 for name in req.get("modules", []):
                     importlib.import_module(name)
@@ -287,9 +300,9 @@ def seed_compiled_cache(modules: list[str] = ()) -> None:
     target = os.environ.get("NUMBA_CACHE_DIR")
     if not target:
         return
-    import ata
+    import ata   # on use: where the compiled loops are cached
     try:
-        from numba.core.caching import _CacheLocator
+        from numba.core.caching import _CacheLocator   # on use: numba's cache internals
         subpath = _CacheLocator.get_suitable_cache_subpath
     except (ImportError, AttributeError):
         return
