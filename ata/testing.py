@@ -43,10 +43,11 @@ from typing import Any, Callable
 import numpy as np
 
 from ata import hookimpl
-from ata.core.errors import ContractError
+from ata.core import references
+from ata.core.errors import ContractError, MissionError
 from ata.core.kernel import DECISION_KINDS, Simulation, is_reference
-from ata.core.mission import SLOTS, ComponentSlots, Mission, validate
-from ata.core.registry import collect_components, get_plugin_manager
+from ata.core.mission import SLOTS, ComponentSlots, Mission, parse_override, validate
+from ata.core.registry import KINDS, collect_components, get_plugin_manager
 from ata.core.state import Allocation, DecisionContext
 
 LIST_SLOT_BASE = {"perturbations": ComponentSlots().perturbations,
@@ -403,10 +404,6 @@ def check_reference(kind: str, target: str, overrides: list[str] = (),
     (``PATH.py:Class``, ``module:Class``) or by its registered name; ``--set`` texts give its
     settings (``NAME.KEY=V``) and the small mission's keys (``mission.KEY=V``). Returns the
     component's name; raises AssertionError on a breach, MissionError on bad input."""
-    from ata.core import references
-    from ata.core.errors import MissionError
-    from ata.core.mission import parse_override
-    from ata.core.registry import KINDS
 
     if kind not in KINDS:
         raise MissionError("--component", None, f"unknown kind {kind!r}; kinds: "
@@ -437,7 +434,7 @@ def check_published_rows(spec: str = "published", per_cell: int = 2,
     first and the last scenario of every method's cell, then evenly between; `cells`: method
     -> the cells to rerun of it) and raise AssertionError naming every value that is not
     identical to the published one."""
-    from ata.experiment.reproduce import rerun_sample
+    from ata.experiment.reproduce import rerun_sample   # on use: the run path, for this check alone
     lines = [x for x in rerun_sample(spec, per_cell, methods, cells=cells)
              if not x.endswith("not rerun")]
     if lines:

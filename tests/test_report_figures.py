@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from _support import flat
-from ata.results import curves
+from ata.results import curves, training_report
 from ata.results import rows as results
 from ata.results import report as rep
 from ata.experiment.evaluate import CORE_COLUMNS
@@ -153,7 +153,7 @@ def test_training_folder_report_writes_its_curves(cli, tmp_path, make):
     pytest.importorskip("matplotlib")
     pytest.importorskip("torch")
     run = make(tmp_path / "run")
-    assert curves.is_training_folder(run)
+    assert training_report.is_training_folder(run)
     res = cli("report", run)
     assert res.exit_code == 0, res.output
     for ext in ("png", "svg"):

@@ -58,10 +58,10 @@ def user_errors(func: Callable) -> Callable:
 
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
-        import pluggy
+        import pluggy   # on use: start-up time
 
-        from ata.core.errors import ContractError, MissionError
-        from ata.experiment.execute import Interrupted
+        from ata.core.errors import ContractError, MissionError   # on use: start-up time
+        from ata.experiment.execute import Interrupted   # on use: start-up time
         try:
             return func(*args, **kwargs)
         except (ContractError, MissionError, pluggy.PluginValidationError) as exc:

@@ -23,10 +23,11 @@ def plugins(verbose: bool = typer.Option(False, "--verbose", "-v",
     """List every component by name, the plugin it comes from and its version. Optional
     plugins (the learned methods) are listed too, marked with the --plugins name that loads
     them."""
-    from rich import box
+    from rich import box   # on use: start-up time
 
-    from ata.core.registry import OPTIONAL_PLUGINS, collect_components, get_plugin_manager
-    from ata.core.settings import describe
+    from ata.core.registry import (OPTIONAL_PLUGINS, collect_components,  # start-up time
+                                   get_plugin_manager)
+    from ata.core.settings import describe   # on use: start-up time
 
     pm = get_plugin_manager(optional=_split(optional))
     loaded = {pm.get_name(p) for p in pm.get_plugins()}

@@ -46,18 +46,18 @@ def report(run_dir: List[Path] = typer.Argument(
            resamples: int = ResamplesOption) -> None:
     """Tables (with bootstrap confidence intervals) and figures of an evaluation, or the
     learning curves of a training run."""
-    from ata.core.errors import MissionError
-    from ata.results import curves
-    from ata.results import report as rep
-    from ata.results import markdown as results_md
-    from ata.results.rows import check_column, read_results
+    from ata.core.errors import MissionError   # on use: start-up time
+    from ata.results import markdown as results_md   # on use: start-up time
+    from ata.results import report as rep   # on use: start-up time
+    from ata.results import training_report   # on use: start-up time
+    from ata.results.rows import check_column, read_results   # on use: start-up time
 
-    if any(curves.is_training_folder(d) for d in run_dir):
+    if any(training_report.is_training_folder(d) for d in run_dir):
         if len(run_dir) > 1:
             raise MissionError("", None, "a training run folder is reported alone: "
                                "ata report RUN_DIR")
-        log, written = curves.write_curves(run_dir[0], out, not no_figures)
-        terminal.table(f"training log {log.path}", *curves.curves_rows(log))
+        log, written = training_report.write_curves(run_dir[0], out, not no_figures)
+        terminal.table(f"training log {log.path}", *training_report.curves_rows(log))
     elif markdown:
         pairs = [tuple(_split(p)) for p in pair or []]
         if any(len(p) != 2 for p in pairs):
@@ -104,10 +104,10 @@ def compare(folders: List[Path] = typer.Argument(
             resamples: int = ResamplesOption) -> None:
     """Paired differences on the same scenarios, with bootstrap 95% CIs, on any results column;
     the scenarios a CI needs to clear 0 (--power); or column means (--means)."""
-    from ata.core.errors import MissionError
-    from ata.results import compare as cmp
-    from ata.published import sets as published
-    from ata.results.rows import read_results
+    from ata.core.errors import MissionError   # on use: start-up time
+    from ata.results import compare as cmp   # on use: start-up time
+    from ata.published import sets as published   # on use: start-up time
+    from ata.results.rows import read_results   # on use: start-up time
 
     if len(folders) > 2:
         raise MissionError("", None, "compares one folder (methods against --base) or two "
@@ -137,10 +137,10 @@ def _against_published(folders: List[Path], column: Optional[List[str]], base: O
                        resamples: int) -> None:
     """`ata compare A published[:NAME]`: A's methods against each published method (or
     --base), on the published rows, after `published.check_pairing`."""
-    from ata.core.errors import MissionError
-    from ata.results import compare as cmp
-    from ata.published import sets as published
-    from ata.results.rows import read_results
+    from ata.core.errors import MissionError   # on use: start-up time
+    from ata.results import compare as cmp   # on use: start-up time
+    from ata.published import sets as published   # on use: start-up time
+    from ata.results.rows import read_results   # on use: start-up time
 
     mine = read_results(folders[0])
     theirs, manifest, where = published.read_published(folders[1])
@@ -173,7 +173,7 @@ def publish(eval_dir: Path = typer.Argument(..., metavar="EVAL_DIR",
     """Publish an evaluation's per-scenario rows with the code and weight digests, model
     revision and scenarios they were made with, for `ata compare A published:NAME` to pair new
     methods against without rerunning them (docs/evaluation.md, "Published rows")."""
-    from ata.published import sets as published
+    from ata.published import sets as published   # on use: start-up time
 
     folder = published.publish(eval_dir, out)
     console.print(f"wrote {escape(str(folder / published.ROWS))}, "
@@ -199,7 +199,7 @@ def show(target: Optional[str] = typer.Argument(
     """Replay one scenario with a recorded trace and draw its map, a timeline per member and
     the humans' states (show_map, show_timeline, show_humans; PNG and SVG), and with --animate
     the map through time (show_map.gif); see docs/show.md."""
-    from ata.viz.show import show as show_scenario
+    from ata.viz.show import show as show_scenario   # on use: start-up time
 
     terminal.show_summary(show_scenario(target, scenario, list(set_ or []), out, animate,
                                         progress=terminal.progress_bar(False)))

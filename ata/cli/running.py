@@ -48,9 +48,9 @@ def run(mission: Optional[str] = typer.Argument(
     The run is a plan of one job on the chunked runner of `ata eval`. Each finished batch is
     saved in the run folder as it ends: rerun the same command with the same --out to go on
     after an interruption (only what is missing runs)."""
-    from ata.experiment import execute, runner
-    from ata.isolation import require_sandbox
-    from ata.session import IN_PROCESS, load_session
+    from ata.experiment import execute, runner   # on use: start-up time
+    from ata.isolation import require_sandbox   # on use: start-up time
+    from ata.session import IN_PROCESS, load_session   # on use: start-up time
 
     backend = require_sandbox(decision_timeout) if isolate else IN_PROCESS
     overrides = list(set_ or []) + ([f"mission.scenarios={scenarios}"] if scenarios else [])
@@ -114,11 +114,11 @@ def eval_(paths: List[str] = typer.Argument(
 
     Each finished work unit is saved in the output folder as it ends: rerun the same command
     with the same --out to go on after an interruption (only what is missing runs)."""
-    from ata.experiment import evaluate as ev
-    from ata.isolation import require_sandbox
-    from ata.results import report as rep
-    from ata.results.rows import read_results
-    from ata.session import IN_PROCESS
+    from ata.experiment import evaluate as ev   # on use: start-up time
+    from ata.isolation import require_sandbox   # on use: start-up time
+    from ata.results import report as rep   # on use: start-up time
+    from ata.results.rows import read_results   # on use: start-up time
+    from ata.session import IN_PROCESS   # on use: start-up time
 
     backend = require_sandbox(decision_timeout) if isolate else IN_PROCESS
     out_dir, result = ev.evaluate_suites(
@@ -152,15 +152,15 @@ def check(mission: str = typer.Argument(
                                                   "drawn anew).")) -> None:
     """Validate a mission file without running it; or, with --component, check that a
     component keeps the contract (docs/plugins.md, "Checking a component")."""
-    from ata.experiment import runner
-    from ata.session import load_session
+    from ata.experiment import runner   # on use: start-up time
+    from ata.session import load_session   # on use: start-up time
 
     if component is not None:
-        from ata.testing import check_reference
+        from ata.testing import check_reference   # on use: start-up time
         try:
             name = check_reference(component, mission, set_ or [], _split(plugins), seed)
         except AssertionError as exc:
-            from ata.cli.terminal import err_console
+            from ata.cli.terminal import err_console   # on use: start-up time
             err_console.print(f"[red]failed[/]: {escape(str(exc))}", highlight=False)
             raise typer.Exit(1) from None
         console.print(f"[green]ok[/]: {component} {escape(name)} ({escape(mission)}) keeps "

@@ -55,7 +55,7 @@ def help_without_type_tags() -> None:
     """Recent typer prints a Python type after every parameter in help pages (``<bool>`` after
     a flag, ``<list[str]>`` after an argument). Our parameters name their values in their
     metavars (FILE, DIR, N) and flags take none: print no type tag but an option's metavar."""
-    from typer import core
+    from typer import core   # on use: start-up time
 
     for cls in (getattr(core, "TyperArgument", None), getattr(core, "TyperOption", None)):
         if cls is not None and hasattr(cls, "display_type_rich"):
@@ -172,7 +172,7 @@ def table(title: str, header: list[str], rows: list[list[str]]) -> None:
 
 def key_values(title: str, rows: list[tuple[str, str]]) -> None:
     """A key per line (`ata run`'s summary): readable at 80 columns."""
-    from rich import box
+    from rich import box   # on use: start-up time
 
     drawn = Table(title=_markup_escape(plain(title, newlines=False)), box=box.SIMPLE,
                   show_header=False, title_justify="left")
@@ -186,7 +186,7 @@ def key_values(title: str, rows: list[tuple[str, str]]) -> None:
 
 def report_tables(report) -> None:
     """An evaluation report's tables, one per (setting, level) (`report.table_rows`)."""
-    from ata.results.report import table_rows, title
+    from ata.results.report import table_rows, title   # on use: start-up time
 
     for setting, level in report.groups():
         table(title(setting, level), *table_rows(report, setting, level, short=True))

@@ -48,7 +48,7 @@ def train(mission: Optional[str] = typer.Argument(
           quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar.")) -> None:
     """Train the learned components of a mission with the trainer it names (ata_hrl: ATA-HRL
     and its ablations; tr_pomdp: the TR-POMDP agents, also after the attention ITA for AtRL-TR)."""
-    from ata.experiment.training import train as train_mission
+    from ata.experiment.training import train as train_mission   # on use: start-up time
 
     def on_start(folder: Path, values: list[int] | None) -> None:
         if not quiet:

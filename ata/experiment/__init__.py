@@ -1,9 +1,9 @@
-"""Experiments around the kernel, above the plugins: loading a mission into a session
-(`runner`), one run path for `ata run` and `ata eval` (`execute`: a plan's work units on an
-executor, `units`, with a durable record that makes every run resumable, `runlog`), evaluation
-suites on held-out scenarios (`suites`, `evaluate`), and what reads their folders back:
-evaluation reports (`results`, `report`), comparisons (`compare`) and training curves
-(`curves`); `terminal` and `tables` draw them for the command line.
+"""The run path of `ata run`, `ata eval` and `ata train`: a plan's work units on an executor
+(`execute`, `units`), each unit run by its job's backend (``ata.backend``) and recorded in a
+durable log that makes every run resumable (`runlog`); a mission's plan and run folder
+(`runner`); suites of methods on held-out scenarios (`suites`, `evaluate`); training runs and
+folders of seeds (`training`); published rows reproduced (`reproduce`).
 
-``ata.core`` is the kernel and ``ata.runtime`` the helpers below the plugins; everything here
-uses them, never the other way round."""
+Below it: the session (``ata.session``), the backends (``ata.backend``, ``ata.isolation``,
+``ata.published``), the training layer, the runtime and the kernel. What reads the folders
+back (tables, reports, curves) is ``ata.results``; the command line is ``ata.cli``."""

@@ -37,6 +37,7 @@ from ata.published import check_models
 from ata.runtime.executors import EXECUTORS, Executor
 from ata.runtime.folders import safe_name, stamped_folder
 from ata.runtime.heldout import EVAL_FIRST_SCENARIO
+from ata.runtime.machine import machine
 from ata.session import Session, load_session
 
 DEFAULT_SCENARIOS = 500
@@ -391,7 +392,7 @@ def write_eval(out_dir: str | Path, suites: list[Suite], jobs: list[Job], result
                       "scenarios": j.mission.settings.scenarios, "seed": j.mission.seed_label,
                       "first_scenario": j.mission.settings.first_scenario,
                       "mission": j.mission.source} for j in jobs],
-            "rows": len(result.rows), "wall_s": result.wall_s, "machine": runlog.machine(),
+            "rows": len(result.rows), "wall_s": result.wall_s, "machine": machine(),
             "method_wall_s": result.method_wall_s, "warnings": result.warnings}
     (out / "eval.json").write_text(json.dumps(meta, indent=2, default=_json_default) + "\n",
                                    encoding="utf-8")

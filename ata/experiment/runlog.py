@@ -319,8 +319,8 @@ class FolderLock:
 
     def acquire(self) -> "FolderLock":
         try:
-            import fcntl
-        except ImportError:          # not POSIX
+            import fcntl                 # imported on use: POSIX only
+        except ImportError:              # not POSIX
             return self
         while True:
             fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
@@ -368,35 +368,3 @@ class FolderLock:
 
     def __exit__(self, *exc) -> None:
         self.release()
-
-
-def machine() -> dict[str, Any]:
-    """What ran an evaluation, for the time columns of its tables: the CPU's model name, the
-    cores the process may use, the system, and the Python, numpy and torch versions."""
-    import platform
-    from importlib import metadata
-    cpu = platform.processor()
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as f:
-            cpu = next((line.split(":", 1)[1].strip() for line in f
-                        if line.startswith("model name")), cpu)
-    except OSError:
-        pass
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except AttributeError:                                  # not on Linux
-        cores = os.cpu_count() or 0
-    out = {"cpu": cpu or "unknown", "cores": cores, "system": platform.platform(),
-           "python": platform.python_version()}
-    for package in ("numpy", "torch"):
-        try:
-            out[package] = metadata.version(package)
-        except metadata.PackageNotFoundError:
-            pass
-    return out
-
-
-def machine_text(info: dict[str, Any]) -> str:
-    """`machine`'s record in a line: 'CPU, N cores (system; Python X, torch Y)'."""
-    versions = "; ".join(f"{k} {info[k]}" for k in ("python", "numpy", "torch") if k in info)
-    return f"{info.get('cpu', 'unknown')}, {info.get('cores', '?')} cores ({versions})"

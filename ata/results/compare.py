@@ -24,6 +24,7 @@ from typing import Iterator
 import numpy as np
 
 from ata.core.errors import MissionError
+from ata.results.report import md_table
 from ata.results.rows import (BOOTSTRAP_SEED, RESAMPLES, Results, bootstrap_ci,
                                     check_column, nanmean, paired)
 
@@ -52,7 +53,6 @@ class Table:
 def markdown(tables: list[Table]) -> str:
     """The tables in Markdown: those of one kind (the same `what` and header) as one table
     with a column for the (setting, level), under a heading."""
-    from ata.results.report import md_table
 
     kinds: dict[tuple[str, tuple[str, ...]], list[Table]] = {}
     for t in tables:

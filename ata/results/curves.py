@@ -70,15 +70,6 @@ class TrainingLog:
         return out
 
 
-def is_training_folder(path: str | Path) -> bool:
-    """A folder with a log.csv (from `ata train`) and no results.csv (from `ata eval`), or a
-    folder of seeds (`ata train --seeds`)."""
-    from ata.training.folders import is_seeds_folder
-    path = Path(path)
-    return ((path / LOG_FILE).is_file() and not (path / "results.csv").exists()) \
-        or is_seeds_folder(path)
-
-
 def read_log(path: str | Path) -> TrainingLog:
     """Read a training run's log.csv (or the folder holding it). Any trainer's columns are
     read; `step` is required, `phase` optional. An unreadable, empty or garbled file, or one
@@ -263,11 +254,7 @@ def _best(log: TrainingLog, column: str) -> tuple[float, str, int, float]:
 def curves_rows(log: TrainingLog) -> tuple[list[str], list[list[str]]]:
     """A row per phase: its steps, the median samples/s, each training score's moving mean at
     its first and last step, each held-out score's first, best and last value, and the
-    cumulative wall time at its end (where the log has those columns). Of a folder of seeds:
-    each seed's best held-out validation."""
-    if not isinstance(log, TrainingLog):
-        from ata.results.seed_curves import best_rows
-        return best_rows(log)
+    cumulative wall time at its end (where the log has those columns)."""
     panels = log.panels()
     speed, score, held = (panels.get(k, []) for k in ("speed", "score", "held_out"))
     wall = "wall_s" in log.columns and np.isfinite(log.columns["wall_s"]).any()
@@ -330,12 +317,7 @@ def curves_markdown(log: TrainingLog, written: list[Path]) -> str:
 def write_curves(run_dir: str | Path, out_dir: str | Path | None = None,
                  with_figures: bool = True) -> tuple[TrainingLog, list[Path]]:
     """Read a training run folder's log.csv; write fig_curves.{png,svg} (unless told not to)
-    and curves.md into `out_dir`, by default the run folder. A folder of seeds: its curves
-    across seeds (`ata.results.seed_curves`)."""
-    from ata.training.folders import is_seeds_folder
-    if is_seeds_folder(run_dir):
-        from ata.results.seed_curves import write_seed_report
-        return write_seed_report(run_dir, out_dir, with_figures)
+    and curves.md into `out_dir`, by default the run folder."""
     log = read_log(run_dir)
     out = Path(out_dir) if out_dir is not None else log.path.parent
     written: list[Path] = []

@@ -12,7 +12,7 @@ import numpy as np
 from ata.results.report import default_pairs, md_table
 from ata.results.rows import (BOOTSTRAP_SEED, RESAMPLES, Results, bootstrap_ci, nanmean,
                                     paired_values)
-from ata.experiment.runlog import machine_text
+from ata.runtime.machine import machine_text
 
 
 def results_markdown(res: Results, pairs: list[tuple[str, str]] | None = None,
@@ -72,7 +72,7 @@ def results_markdown(res: Results, pairs: list[tuple[str, str]] | None = None,
 
 def made_on(folders: list[Path]) -> list[str]:
     """Each evaluation folder's machine and worker count, as its eval.json records them
-    (`runlog.machine`), one distinct line each; folders of no record are left out."""
+    (`ata.runtime.machine.machine`), one distinct line each; folders of no record are left out."""
     out: list[str] = []
     for folder in folders:
         path = Path(folder) / "eval.json"

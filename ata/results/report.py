@@ -240,12 +240,12 @@ def figure_caption(stem: str, report: Report, paired: list[Paired] = ()) -> str:
 def pyplot():
     """matplotlib's pyplot on the Agg backend; a MissionError naming the fix without it."""
     try:
-        import matplotlib
+        import matplotlib   # on use: matplotlib's start-up time
     except ImportError:
         raise MissionError("", None, "the figures need matplotlib: pip install 'ata[plot]' "
                            "(or use --no-figures)") from None
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt   # on use: matplotlib's start-up time
     return plt
 
 
@@ -260,7 +260,7 @@ def save_figure(fig: Any, out_dir: str | Path, stem: str, *, tight: bool = True,
                 salt: str = "ata-report") -> list[Path]:
     """`stem`.png and `stem`.svg of `fig` in `out_dir`, reproducibly (fixed SVG ids from
     `salt`, no date): the same figure gives the same files. The paths."""
-    import matplotlib
+    import matplotlib   # on use: matplotlib's start-up time
 
     paths = []
     with matplotlib.rc_context({"svg.hashsalt": salt}):

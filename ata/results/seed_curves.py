@@ -14,8 +14,11 @@ from pathlib import Path
 import numpy as np
 
 from ata.results.curves import CURVE_PANELS, TrainingLog, read_log
-from ata.runtime.folders import prepare_out_dir, writing
 from ata.results.report import md_table, pyplot, save_figure
+from ata.results.rows import bootstrap_ci, paired_values, read_results
+from ata.runtime.folders import prepare_out_dir, writing
+from ata.training import read_checkpoint
+from ata.training.folders import read_seeds
 
 RESAMPLES = 2000
 
@@ -31,7 +34,6 @@ class SeedLogs:
 
 
 def read_seed_logs(folder: str | Path) -> SeedLogs:
-    from ata.training.folders import read_seeds
     data = read_seeds(folder)
     logs = [read_log(d) for d in data["dirs"]]
     return SeedLogs(Path(folder), data["seeds"], logs, data["dirs"])
@@ -57,7 +59,7 @@ def across(seeds: SeedLogs, column: str) -> tuple[np.ndarray, np.ndarray, np.nda
     n = v.shape[1]
     if n < 2:
         return x, mean, np.zeros_like(mean)
-    from scipy import stats
+    from scipy import stats   # imported on use: scipy.stats costs start-up time
     half = stats.t.ppf(0.975, n - 1) * v.std(1, ddof=1) / math.sqrt(n)
     return x, mean, half
 
@@ -123,7 +125,6 @@ def _trained(folder: Path) -> dict:
     if path.is_file():
         return json.loads(path.read_text(encoding="utf-8"))
     if (folder / "best.pt").is_file():
-        from ata.training import read_checkpoint
         data = read_checkpoint(folder / "best.pt")
         return {"best_eval": float(data.get("best_eval", math.nan)),
                 "wall_s": float(data.get("wall_s", math.nan)),
@@ -134,7 +135,7 @@ def _trained(folder: Path) -> dict:
 def _t_half(v: np.ndarray) -> float:
     if v.size < 2:
         return math.nan
-    from scipy import stats
+    from scipy import stats   # imported on use: scipy.stats costs start-up time
     return float(stats.t.ppf(0.975, v.size - 1) * v.std(ddof=1) / math.sqrt(v.size))
 
 
@@ -149,7 +150,6 @@ def paired_rows(seeds: SeedLogs, eval_dir: Path, reference: str = "greedy"):
     """Each seed's best weights minus `reference` on the same scenarios (mean, 95% bootstrap
     CI over scenarios), and the IQM of the seeds' mean differences with a 95% bootstrap CI that
     resamples seeds and, within each, scenarios."""
-    from ata.results.rows import bootstrap_ci, paired_values, read_results
     res = read_results(eval_dir)
     header = ["seed", "method", "cell", "scenarios", f"mean - {reference} (95% CI)"]
     rows, diffs = [], []

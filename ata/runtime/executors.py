@@ -105,11 +105,11 @@ def _die_with_parent(parent: int) -> None:
     """In a worker: leave Ctrl-C to the parent (which stops the pool), and ask the kernel to end
     this process when its parent dies (Linux), so that a killed `ata eval` leaves no worker
     behind."""
-    import signal
+    import signal   # on use: in the worker that dies with its parent
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
-        import ctypes
+        import ctypes   # on use: Linux's prctl, where there is one
 
         libc = ctypes.CDLL(None, use_errno=True)
         PR_SET_PDEATHSIG = 1
@@ -130,7 +130,7 @@ class RayExecutor(Executor):
 
     def __init__(self, address: str | None = None, workers: int | None = None):
         try:
-            import ray
+            import ray   # the optional extra ata[ray]
         except ImportError:
             raise MissionError("--executor", None, "ray is not installed; install it with: "
                                "pip install 'ata[ray]'") from None

@@ -11,6 +11,7 @@ overwritten), and a full disk or an unwritable path is one message with exit sta
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import re
 import time
@@ -99,7 +100,6 @@ def folder_kind(path: str | Path) -> tuple[str, list[str]] | None:
 
 
 def _plan(path: Path) -> dict | None:
-    import json
     try:
         plan = json.loads((path / "plan.json").read_text(encoding="utf-8"))
     except (OSError, ValueError):

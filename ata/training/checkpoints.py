@@ -33,7 +33,7 @@ def read_checkpoint(path: str | Path, kind: str | None = None) -> dict[str, Any]
     :param kind: the method the checkpoint must be of (its ``kind`` entry), if any: a
         TR-POMDP checkpoint given where ATA-HRL's is expected is refused.
     """
-    import torch
+    import torch   # on use: the simulator needs no torch
     p = Path(path)
     if not p.exists():
         raise CheckpointError(p, "no such checkpoint (train one with `ata train`)")
@@ -72,7 +72,7 @@ def read_checkpoint(path: str | Path, kind: str | None = None) -> dict[str, Any]
 def non_finite(data: Any, where: str = "") -> Iterator[str]:
     """The names of the floating-point tensors in `data` (nested dicts and lists) that hold a
     NaN or an infinity."""
-    import torch
+    import torch   # on use: the simulator needs no torch
     if isinstance(data, torch.Tensor):
         if data.is_floating_point() and not bool(torch.isfinite(data).all()):
             yield where or "the checkpoint"

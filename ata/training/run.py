@@ -143,7 +143,7 @@ class TrainRun:
         if self._writer is None:
             try:
                 import tensorboard  # noqa: F401  (torch's writer needs the package)
-                from torch.utils.tensorboard import SummaryWriter
+                from torch.utils.tensorboard import SummaryWriter  # the simulator needs no torch
             except ImportError:
                 self.tensorboard_missing = True
                 return None
@@ -163,7 +163,7 @@ class TrainRun:
 
     def save(self, data: dict[str, Any], name: str = "checkpoint.pt") -> Path:
         """Write a checkpoint atomically (torch.save to a temporary file, then a rename)."""
-        import torch
+        import torch   # on use: the simulator needs no torch
         path = self.dir / name
         tmp = path.with_name(path.name + ".tmp")
         data["log_rows"] = self.rows

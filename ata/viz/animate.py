@@ -116,7 +116,7 @@ def draw_frame(ep: Episode, ax: Any, k: int, t: float) -> None:
 
 def legend(ep: Episode, fig: Any) -> None:
     """What the marks mean, once, right of the map."""
-    from matplotlib.lines import Line2D
+    from matplotlib.lines import Line2D   # on use: matplotlib's start-up time
 
     def mark(label: str, shape: str = "o", face: str = "white", edge: str = "black",
              width: float = 0.8, size: float = 8.0) -> Line2D:
@@ -144,8 +144,8 @@ def write_animation(ep: Episode, out_dir: str | Path,
     looping; its path. `progress` (`ata.experiment.execute.ProgressFactory`) is told of each
     frame drawn."""
     Figure = figure_class()              # no matplotlib: one clear message first
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from PIL import Image
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # matplotlib's start-up time
+    from PIL import Image   # on use: matplotlib's start-up time
 
     fig = Figure(figsize=SIZE_IN, dpi=DPI)
     canvas = FigureCanvasAgg(fig)

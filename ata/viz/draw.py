@@ -32,7 +32,7 @@ STEMS = ("show_map", "show_timeline", "show_humans")
 def figure_class() -> Any:
     """matplotlib's Figure (no pyplot, no global backend), or one clear message without it."""
     try:
-        from matplotlib.figure import Figure
+        from matplotlib.figure import Figure   # on use: matplotlib's start-up time
     except ImportError:
         raise MissionError("", None, "the pictures need matplotlib: pip install "
                            "'ata[plot]'") from None
@@ -81,7 +81,7 @@ def _reallocation_lines(ax: Any, ep: Episode, zorder: float = 0.5,
 def draw_map(ep: Episode, fig: Any) -> None:
     """Base, POIs (shape: kind, size: difficulty, fill: outcome), each robot's route, its
     failure, and the POIs whose attributes differ from the estimate."""
-    from matplotlib.lines import Line2D
+    from matplotlib.lines import Line2D   # on use: matplotlib's start-up time
 
     ax = fig.add_axes((0.07, 0.07, 0.62, 0.85))
     area = ep.area_m
@@ -168,8 +168,8 @@ def draw_map(ep: Episode, fig: Any) -> None:
 def draw_timeline(ep: Episode, fig: Any) -> None:
     """One row per human (navigation legs, classifications, re-briefs, SA switch cost, idle
     time) and per robot (travel, waiting for a navigator, captures, re-plans, failure)."""
-    from matplotlib.lines import Line2D
-    from matplotlib.patches import Patch
+    from matplotlib.lines import Line2D   # on use: matplotlib's start-up time
+    from matplotlib.patches import Patch   # on use: matplotlib's start-up time
 
     H, R = ep.skill.size, ep.robot_type.size
     inches = fig.get_figheight()
@@ -272,7 +272,7 @@ def _covered(spans: list[tuple[float, float]]) -> float:
 def draw_humans(ep: Episode, fig: Any) -> None:
     """Per human: true fatigue F_f and the F_f policies saw (after the injectors), utilisation
     over the trailing window, SA, re-briefs and the reallocation epochs."""
-    from matplotlib.lines import Line2D
+    from matplotlib.lines import Line2D   # on use: matplotlib's start-up time
 
     H = ep.skill.size
     cols = 2 if H > 1 else 1
@@ -332,7 +332,7 @@ def draw_humans(ep: Episode, fig: Any) -> None:
 def write_figures(ep: Episode, out_dir: str | Path) -> list[Path]:
     """Draw the three pictures of `ep` into `out_dir`, each as PNG and SVG; the paths."""
     Figure = figure_class()              # no matplotlib: one clear message first
-    import matplotlib
+    import matplotlib   # on use: matplotlib's start-up time
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
