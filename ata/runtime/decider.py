@@ -39,7 +39,7 @@ from ata.core.rng import StreamRNG
 from ata.core.settings import settings_dict
 from ata.core.state import Allocation, DecisionContext, DecisionView, EpisodeOutcome
 from ata.runtime.frames import child_recv, child_send
-from ata.runtime.messages import ALLOCATION, OPERATIONS, Op
+from ata.runtime.messages import ALLOCATION, OPERATIONS, SLOT_OPERATIONS, Op
 
 
 def _names(value: str | list[str]) -> list[str]:
@@ -150,10 +150,12 @@ class Decider:
                                reallocatable=_frozen(req["reallocatable"]), rng=self.rng,
                                settings=self.settings, channel=self.channel)
 
-    HANDLERS = {Op.RECONSTRUCT: "_reconstruct", Op.INITIAL: "_allocate",
-                Op.REALLOCATE: "_allocate", Op.CONDITION: "_condition",
-                Op.TRAINED_ON: "_trained_on", Op.EPISODE_SCORED: "_episode_scored"}
-    """The method that answers each decision operation."""
+    HANDLERS = {Op.RECONSTRUCT: "_reconstruct", Op.TRAINED_ON: "_trained_on",
+                Op.EPISODE_SCORED: "_episode_scored",
+                **{op: "_decide" for slot, op in SLOT_OPERATIONS.items()
+                   if slot != "reconstructors"}}
+    """The method that answers each decision operation: a decision slot's by `_decide`, from
+    its declared `Operation`."""
 
     def handle(self, req: dict[str, Any]) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         """Answer one decision operation (`ata.runtime.messages`): a header and named arrays."""
@@ -174,18 +176,20 @@ class Decider:
         self.recon, self.recon_epoch = recon, req["epoch"]
         return {}, {k: np.asarray(v) for k, v in recon.items()}
 
-    def _allocate(self, req: dict[str, Any]) -> tuple[dict, dict[str, np.ndarray]]:
-        slot = OPERATIONS[req["op"]].slot
-        kwargs = {"active": req["active"]} if req["op"] == Op.REALLOCATE else {}
-        alloc = self.callers[slot](ctx=self.context(req), **kwargs)
-        if not isinstance(alloc, Allocation):
-            raise ContractError(f"{slot} policy returned {type(alloc).__name__}, not an "
-                                "Allocation")
-        return {}, {f: np.asarray(getattr(alloc, f)) for f in ALLOCATION}
-
-    def _condition(self, req: dict[str, Any]) -> tuple[dict, dict[str, np.ndarray]]:
-        return {}, {"active": np.asarray(self.callers["condition"](ctx=self.context(req)),
-                                         dtype=bool)}
+    def _decide(self, req: dict[str, Any]) -> tuple[dict, dict[str, np.ndarray]]:
+        """A decision slot's call, as its `Operation` declares it: the slot's hook on the
+        context and the request's `hook_args`; its answer an Allocation's arrays or a (B,)
+        bool array."""
+        operation = OPERATIONS[req["op"]]
+        slot = operation.slot
+        out = self.callers[slot](ctx=self.context(req),
+                                 **{k: req[k] for k in operation.hook_args})
+        if operation.arrays == ALLOCATION:
+            if not isinstance(out, Allocation):
+                raise ContractError(f"{slot} policy returned {type(out).__name__}, not an "
+                                    "Allocation")
+            return {}, {f: np.asarray(getattr(out, f)) for f in ALLOCATION}
+        return {}, {operation.arrays[0]: np.asarray(out, dtype=bool)}
 
     def _trained_on(self, req: dict[str, Any]) -> tuple[dict, dict[str, np.ndarray]]:
         ranges = [[[int(x) for x in r] for r in (found or [])]

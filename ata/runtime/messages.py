@@ -43,13 +43,16 @@ ALLOCATION = ("robot", "navigator", "classifier")
 @dataclass(frozen=True)
 class Operation:
     """One operation: the request's fields, the answer's header keys and array names (``None``:
-    names the components choose, checked by the host), and the decision slot it serves."""
+    names the components choose, checked by the host), and the decision slot it serves with
+    the request fields its hook takes besides the context (``hook_args``). A decision slot's
+    answer is an `Allocation`'s arrays (`ALLOCATION`) or one (B,) bool array."""
 
     op: Op
     request: tuple[str, ...] = ()
     header: tuple[str, ...] = ()
     arrays: tuple[str, ...] | None = ()
     slot: str | None = None
+    hook_args: tuple[str, ...] = ()
 
 
 OPERATIONS: dict[Op, Operation] = {o.op: o for o in (
@@ -60,7 +63,8 @@ OPERATIONS: dict[Op, Operation] = {o.op: o for o in (
               slot="reconstructors"),
     Operation(Op.INITIAL, CONTEXT, arrays=ALLOCATION, slot="initial"),
     Operation(Op.CONDITION, CONTEXT, arrays=("active",), slot="condition"),
-    Operation(Op.REALLOCATE, CONTEXT + ("active",), arrays=ALLOCATION, slot="reallocation"),
+    Operation(Op.REALLOCATE, CONTEXT + ("active",), arrays=ALLOCATION, slot="reallocation",
+              hook_args=("active",)),
     Operation(Op.TRAINED_ON, header=("ranges",)),
     Operation(Op.EPISODE_SCORED, ("r_perf", "reallocated", "allocations"),
               header=("warnings",), arrays=None),
