@@ -48,23 +48,17 @@ def run(mission: Optional[str] = typer.Argument(
     The run is a plan of one job on the chunked runner of `ata eval`. Each finished batch is
     saved in the run folder as it ends: rerun the same command with the same --out to go on
     after an interruption (only what is missing runs)."""
-    from ata.experiment import execute, runner   # on use: start-up time
+    from ata.experiment import runner   # on use: start-up time
     from ata.isolation import require_sandbox   # on use: start-up time
-    from ata.session import IN_PROCESS, load_session   # on use: start-up time
+    from ata.session import IN_PROCESS   # on use: start-up time
 
     backend = require_sandbox(decision_timeout) if isolate else IN_PROCESS
     overrides = list(set_ or []) + ([f"mission.scenarios={scenarios}"] if scenarios else [])
-    session = load_session(mission, overrides, _split(plugins), backend=backend)
+    session, out_dir, result = runner.run(
+        mission, overrides, _split(plugins), out, workers=workers, executor=executor,
+        address=address, chunk_size=chunk_size, cache=cache, force=force, backend=backend,
+        notify=note, progress=terminal.progress_bar(quiet))
     m = session.mission
-    workers = workers or m.settings.workers
-    # the components are built (checkpoints read) before any folder is made or scenario runs
-    runner.build_once(session)
-    plan = runner.mission_plan(session, workers, chunk_size or runner.RUN_CHUNK)
-    out_dir, result = execute.run_plan(
-        plan, lambda done: (done.out_dir, runner.write_done(session, done)), out,
-        executor=executor or ("serial" if workers <= 1 else "process"), workers=workers,
-        address=address, cache=cache, force=force, notify=note,
-        progress=terminal.progress_bar(quiet))
     terminal.key_values(f"{m.display_name()}: {m.settings.name}",
                         runner.summary_rows(session, result))
     terminal.warn(result.warnings)

@@ -14,17 +14,18 @@ import numpy as np
 import tomli_w
 
 from ata import __version__
+from ata.backend import IN_PROCESS, Backend
 from ata.core.kernel import REFERENCE_COLUMN
 from ata.core.mission import Mission
 from ata.experiment import runlog
-from ata.experiment.execute import Done, Plan
+from ata.experiment.execute import Done, Plan, ProgressFactory, run_plan
 from ata.experiment.units import (RUN_CHUNK, chunks_of, fixed_chunks, make_units, run_units,
                                   scenario_ids)
 from ata.runtime import memory
 from ata.runtime.executors import Executor, ProcessExecutor, SerialExecutor
 from ata.runtime.folders import stamped_folder
 from ata.runtime.inputs import shipped_setting
-from ata.session import Session
+from ata.session import Session, load_session
 
 
 @dataclass
@@ -50,6 +51,26 @@ class RunResult:
             row.update({k: float(v[i]) for k, v in self.metrics.items()})
             out.append(row)
         return out
+
+
+def run(mission: str | None = None, overrides: list[str] | None = None,
+        plugins: list[str] | None = None, out: str | Path | None = None, *,
+        workers: int | None = None, executor: str | None = None, address: str | None = None,
+        chunk_size: int | None = None, cache: str | Path | None = None, force: bool = False,
+        backend: Backend = IN_PROCESS, notify: Callable[[str], None] | None = None,
+        progress: ProgressFactory | None = None) -> tuple[Session, Path, RunResult]:
+    """`ata run`: load the mission, build its components once (before any folder is made or
+    scenario runs), run its plan into `out` (`execute.run_plan`) and write the folder; the
+    session, the folder and the result."""
+    session = load_session(mission, overrides, plugins, backend=backend)
+    workers = workers or session.mission.settings.workers
+    build_once(session)
+    plan = mission_plan(session, workers, chunk_size or RUN_CHUNK)
+    out_dir, result = run_plan(
+        plan, lambda done: (done.out_dir, write_done(session, done)), out,
+        executor=executor or ("serial" if workers <= 1 else "process"), workers=workers,
+        address=address, cache=cache, force=force, notify=notify, progress=progress)
+    return session, out_dir, result
 
 
 def build_once(session: Session) -> None:
