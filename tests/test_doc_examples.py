@@ -12,8 +12,8 @@ whose working folder is a fresh temporary one that holds links to the repository
 writes (a ``runs/`` folder) lands in the temporary folder. A failure names the doc file and the
 line in it.
 
-Beside the examples, the tables of docs/model.md (P_rc, t_bar, F_d, image quality, the levels,
-the team settings, the default constants) are checked against the code's.
+Beside the examples, the tables of docs/model.md and docs/library.md (P_rc, t_bar, F_d, image
+quality, the levels, the team settings, the default constants) are checked against the code's.
 """
 
 from __future__ import annotations
@@ -122,7 +122,8 @@ def test_every_fragment_marker_has_a_reason_and_a_block():
 
 
 def test_the_reference_docs_have_examples_that_run():
-    for name in ("model.md", "api.md", "results-columns.md"):
+    for name in ("model.md", "methods.md", "hooks.md", "decisions.md", "api.md",
+                 "results-columns.md"):
         assert any(not b.fragment for b in blocks(ROOT / "docs" / name)), name
 
 
@@ -153,7 +154,7 @@ def test_the_python_blocks_of_the_doc_run(doc, tmp_path):
                     pytrace=False)
 
 
-# -- docs/model.md's tables are the code's --------------------------------------------------------
+# -- the tables of docs/model.md and docs/library.md are the code's -----------------------------
 
 def _rows(text: str, first: str) -> list[list[str]]:
     """The cells of every markdown table row whose first cell is `first`, in order."""
@@ -171,7 +172,9 @@ def test_the_model_page_tables_are_the_code_tables():
     from ata.core.mission import TEAM_SETTINGS, UNCERTAINTY_LEVELS
     from ata.model import fatigue, tables, team
 
-    text = (ROOT / "docs" / "model.md").read_text(encoding="utf-8")
+    # the model's tables, then the library's (the default constants)
+    text = "\n".join((ROOT / "docs" / name).read_text(encoding="utf-8")
+                      for name in ("model.md", "library.md"))
     # P_RC, T_BAR and F_D, in that order: a row per quality, a column per difficulty
     for i, table in enumerate((tables.P_RC, tables.T_BAR, tables.F_D)):
         shown = [[float(x) for x in _rows(text, q)[i]] for q in tables.QUALITIES]

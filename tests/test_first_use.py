@@ -23,6 +23,9 @@ from ata.testing import check_component
 
 ROOT = Path(__file__).resolve().parent.parent
 PLUGINS_DOC = (ROOT / "docs" / "plugins.md").read_text(encoding="utf-8")
+PLUGIN_PAGES = PLUGINS_DOC + "".join((ROOT / "docs" / name).read_text(encoding="utf-8")
+                                     for name in ("hooks.md", "decisions.md"))
+"""The guide and the hook reference of a plugin author."""
 
 
 def at_80(*args: str):
@@ -105,7 +108,7 @@ def test_the_settings_own_sizes_keep_its_name(overrides, expected):
     assert expected in " ".join(result.output.split())
 
 
-# --- docs/plugins.md -----------------------------------------------------------------------------
+# --- docs/plugins.md, hooks.md, decisions.md -----------------------------------------------------
 
 def code_block(doc: str, holding: str) -> str:
     """The one ```python block of `doc` that holds `holding`."""
@@ -118,13 +121,13 @@ def code_block(doc: str, holding: str) -> str:
                                         ("condition", "EveryFifthEpoch")])
 def test_the_decision_examples_pass_the_check_as_written(kind, name):
     namespace: dict = {"np": np, "hookimpl": hookimpl, "Allocation": Allocation}
-    exec(code_block(PLUGINS_DOC, f"class {name}"), namespace)
+    exec(code_block(PLUGIN_PAGES, f"class {name}"), namespace)
     check_component(kind, namespace[name])
 
 
 def test_every_shared_column_is_defined():
     # the bullets after the paragraph that says "What each column holds"
-    section = PLUGINS_DOC.split("What each column holds", 1)[1].split("\n\n")[1]
+    section = PLUGIN_PAGES.split("What each column holds", 1)[1].split("\n\n")[1]
     items = re.split(r"^\* ", section, flags=re.M)[1:]
     defined = {}
     for item in items:

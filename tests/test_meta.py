@@ -1,5 +1,5 @@
-"""Meta-tests, after datasette's: every hook is documented with its exact signature in
-docs/plugins.md, the kernel calls every phase hook as often as the docs say, and no Python file
+"""Meta-tests, after datasette's: every hook is documented with its exact signature in the
+plugin author's pages (docs/plugins.md, hooks.md, decisions.md), the kernel calls every phase hook as often as the docs say, and no Python file
 of the project is over 500 lines (docs/architecture.md)."""
 
 from __future__ import annotations
@@ -17,7 +17,9 @@ from ata.core.state import Allocation
 from ata.core.registry import KINDS
 
 ROOT = Path(__file__).resolve().parent.parent
-DOC = ROOT / "docs" / "plugins.md"
+DOCS = [ROOT / "docs" / name for name in ("plugins.md", "hooks.md", "decisions.md")]
+"""The plugin author's pages: the guide, the hooks of the world, the decision hooks."""
+DOC_TEXT = "\n".join(path.read_text(encoding="utf-8") for path in DOCS)
 TESTS = Path(__file__).resolve().parent
 
 HOOKS = sorted(name for name, obj in inspect.getmembers(hookspecs, inspect.isfunction)
@@ -45,7 +47,7 @@ def test_the_hooks_are_the_documented_set():
 
 @pytest.mark.parametrize("name", HOOKS)
 def test_hook_is_documented_with_its_exact_signature(name):
-    doc = normalise(DOC.read_text(encoding="utf-8"))
+    doc = normalise(DOC_TEXT)
     spec = getattr(hookspecs, name).ata_spec
     marker = "@hookspec(firstresult=True)" if spec["firstresult"] else "@hookspec"
     assert f"{marker} {signature_text(name)}" in doc
@@ -60,12 +62,12 @@ def test_signature_text_is_what_the_source_says():
 
 
 def test_documented_hooks_all_exist():
-    documented = set(re.findall(r"^def (ata_\w+)\(", DOC.read_text(encoding="utf-8"), re.M))
+    documented = set(re.findall(r"^def (ata_\w+)\(", DOC_TEXT, re.M))
     assert documented == set(HOOKS)
 
 
 def test_doc_covers_kinds_settings_start_up_and_tracing():
-    doc = DOC.read_text(encoding="utf-8")
+    doc = DOC_TEXT
     for kind in KINDS:
         assert f"`{kind}`" in doc
     for topic in ("register(kind, name, factory)", "class Settings:", "param(",
@@ -78,7 +80,7 @@ def test_doc_covers_kinds_settings_start_up_and_tracing():
 def test_doc_lists_the_shared_columns_of_the_built_in_models():
     from ata.plugins import humans, robots, tasks
 
-    doc = DOC.read_text(encoding="utf-8")
+    doc = DOC_TEXT
     for columns in (humans.HUMAN_INHERENT, humans.HUMAN_STATE, robots.ROBOT_INHERENT,
                     robots.ROBOT_STATE, tasks.TASK_INHERENT, tasks.TASK_STATE):
         assert ", ".join(f"`{c}`" for c in columns) in doc, columns
