@@ -41,7 +41,7 @@ from ata import __version__
 from ata.core.errors import MissionError
 from ata.core.mission import loads_toml
 from ata.results.rows import Results, read_results
-from ata.runtime.folders import safe_name
+from ata.runtime.folders import replace_folder, safe_name
 from ata.session import inputs_of, load_session
 
 PUBLISHED = Path(__file__).resolve().parent
@@ -157,7 +157,8 @@ def folder_parts(folder: Path, results: Results) -> tuple[dict[str, Any], dict[t
 
 
 def publish(eval_dir: str | Path, out: str | Path) -> Path:
-    """Write the published rows of an `ata eval` folder to `out` (rows.csv.gz, manifest.json)."""
+    """Write the published rows of an `ata eval` folder to `out` (rows.csv.gz, manifest.json),
+    whole or not at all (`replace_folder`)."""
     folder, out = Path(eval_dir), Path(out)
     results = read_results(folder)
     plugins, missions = _eval_parts(folder)
@@ -207,8 +208,6 @@ def publish(eval_dir: str | Path, out: str | Path) -> Path:
     writer.writeheader()
     writer.writerows(rows)
     data = gzip.compress(buffer.getvalue().encode(), mtime=0)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / ROWS).write_bytes(data)
     try:
         machine = json.loads((folder / "eval.json").read_text(encoding="utf-8")).get("machine")
     except (OSError, ValueError):
@@ -216,8 +215,9 @@ def publish(eval_dir: str | Path, out: str | Path) -> Path:
     manifest = {"format": FORMAT, "ata": __version__, "made_with": plugins.get("ata"),
                 "rows": len(rows), "rows_sha256": hashlib.sha256(data).hexdigest(),
                 "machine": machine, "methods": methods}
-    (out / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n", encoding="utf-8")
-    return out
+    # whole or not at all: a full disk never leaves half a set, nor spoils the set it replaces
+    return replace_folder(out, {ROWS: data,
+                                MANIFEST: (json.dumps(manifest, indent=1) + "\n").encode()})
 
 
 def read_published(spec: str | Path) -> tuple[Results, dict[str, Any], Path]:

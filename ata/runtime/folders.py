@@ -14,6 +14,7 @@ import contextlib
 import json
 import os
 import re
+import shutil
 import time
 from pathlib import Path
 from typing import Iterator
@@ -173,3 +174,56 @@ def writing(out_dir: str | Path) -> Iterator[None]:
         yield
     except OSError as exc:
         raise MissionError("", None, cannot_write(exc, out_dir)) from None
+
+
+def replace_folder(out: str | Path, files: dict[str, bytes]) -> Path:
+    """Write `files` (name: bytes) as the folder `out`, whole or not at all: they are written
+    and synced in a temporary folder beside it, which then takes `out`'s name. A folder already
+    at `out` (one holding only these names: an earlier version of the same set) is left as it
+    was until the new one is whole, so a full disk or a killed process never leaves it half
+    written. A file at `out`, or a folder holding other files, is refused."""
+    out = Path(out)
+    target = Path(os.path.abspath(out))
+    if target.exists() and not target.is_dir():
+        raise MissionError("--out", None, f"cannot write to {out}: it is a file")
+    if target.is_dir():
+        try:
+            other = sorted(p.name for p in target.iterdir() if p.name not in files)
+        except OSError as exc:
+            raise MissionError("--out", None, f"cannot read {out}: "
+                               f"{exc.strerror or exc}") from None
+        if other:
+            raise MissionError("--out", None, f"{out} holds other files than "
+                               f"{', '.join(files)} ({', '.join(other[:3])}"
+                               f"{', ...' if len(other) > 3 else ''}); choose another folder")
+    prepare_out_dir(target.parent)
+    tmp = target.with_name(f".{target.name}.{os.getpid()}.new")   # mkdir: the umask's mode
+    old = tmp.with_suffix(".old")
+    name = ""
+    try:
+        shutil.rmtree(tmp, ignore_errors=True)          # one left by a killed process
+        tmp.mkdir()
+        for name, data in files.items():
+            with open(tmp / name, "wb") as f:
+                f.write(data)
+                f.flush()
+                os.fsync(f.fileno())
+        name = ""
+        had = target.is_dir()
+        if had:
+            os.rename(target, old)
+        try:
+            os.rename(tmp, target)
+        except OSError:
+            if had:
+                os.rename(old, target)
+            raise
+    except OSError as exc:
+        where = out / name if name else out
+        kept = "; it is left as it was" if target.is_dir() else ""
+        raise MissionError("--out", None, f"cannot write {where}: "
+                           f"{exc.strerror or exc}{kept}") from None
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+        shutil.rmtree(old, ignore_errors=True)
+    return out
