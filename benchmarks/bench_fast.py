@@ -7,7 +7,7 @@ Usage: python benchmarks/bench_fast.py [--quick] [--only 1,2,...] [--train-set T
    tenfold to the 500 of the suite: an upper bound, the suite's units being of 250);
 2. ATA-HRL's CPU time per scenario over greedy's, whole process (`ata run` in a fresh process),
    settings (a) and (b) and the custom teams 9/12/90 and 20/28/250 at high uncertainty, and the
-   growth of ATA-HRL's time with the POIs between the last two (issue 44's goals 1 and 2;
+   growth of ATA-HRL's time with the POIs between the last two (goals 1 and 2 of figure 2;
    bench_scaling; --quick: half the scenarios);
 3. greedy with on-event reallocation, batch 500 over batch 1 throughput, (a) and (b), each side
    the best of 2 (--quick) or 3 runs made in alternation;
@@ -81,7 +81,7 @@ def figure_suite(cfg: dict) -> None:
 
 
 def figure_per_scenario(cfg: dict) -> None:
-    """Issue 44's goals 1 and 2: ATA-HRL's time per scenario over greedy's, whole process,
+    """Figure (2), goals 1 and 2: ATA-HRL's time per scenario over greedy's, whole process,
     in (a), (b) and at 20/28/250, and its growth with the POIs (bench_scaling)."""
     rows = bench_scaling.measure(["a", "b", "90", "250"], cfg["least_of"] < 3, 1, say=say)
     for key in ("a", "b"):

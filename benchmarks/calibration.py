@@ -1,4 +1,4 @@
-"""The calibration check at the end of docs/model.md: do the defaults leave each phenomenon visible?
+"""The calibration check of docs/calibration.md: do the defaults leave each phenomenon visible?
 
 Usage: python benchmarks/calibration.py [--scenarios 500] [--seed 0]
 

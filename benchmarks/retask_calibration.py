@@ -1,4 +1,4 @@
-"""The calibration of the re-tasking cost (docs/model.md): greedy never / on_event /
+"""The calibration of the re-tasking cost (docs/calibration.md): greedy never / on_event /
 always reallocating, paired differences with their 95% confidence intervals.
 
 Usage: python benchmarks/retask_calibration.py [--scenarios 500] [--seed 0]
@@ -7,7 +7,7 @@ Usage: python benchmarks/retask_calibration.py [--scenarios 500] [--seed 0]
 Runs setting (a) on the same scenarios with the greedy allocation under each condition policy,
 twice: greedy reallocation blind to the cost (``greedy.retask_cost = false``: it re-plans in full
 whenever asked), and greedy as shipped, which keeps the allocation unless a change gains more than
-it costs. docs/model.md asks that, at the defaults, reallocating at every epoch score below
+it costs. docs/calibration.md asks that, at the defaults, reallocating at every epoch score below
 reallocating on events, and reallocating on events above never reallocating, each as a paired
 difference whose CI excludes 0.
 """

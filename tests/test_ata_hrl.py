@@ -199,8 +199,8 @@ def test_sampled_decisions_do_not_depend_on_the_batch():
 
 
 def test_the_shipped_ita_is_trained_and_decides_otherwise_than_its_prior():
-    # ata/weights/ata_hrl_a.pt records where it came from (docs/training.md, "Provenance"): the
-    # aux phase on the ITA of a run of its own, which the three (a) files share
+    # ata/weights/ata_hrl_a.pt records its training (docs/training.md, "The shipped weights"):
+    # the aux phase on the ITA of a run of its own, which the three (a) files share
     from ata.training import WEIGHTS
     data = read_checkpoint(WEIGHTS / "ata_hrl_a.pt", "ata_hrl")
     assert data["trained"] == ["ita", "cond", "tr", "aux"]

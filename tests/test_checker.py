@@ -200,7 +200,7 @@ def test_a_policy_reading_the_seed_from_its_context_fails_with_a_clear_message()
 
 
 class PeeksAtSetup:
-    """Written against the old API too: a policy implementing ata_setup got the world."""
+    """A policy implementing ata_setup, the hook that hands a component the world."""
 
     def __init__(self, settings, mission):
         self.u = None

@@ -149,3 +149,83 @@ def test_relative_links_point_to_files(doc):
         if "://" in target:
             continue
         assert (path.parent / target).exists(), f"{doc} links to {target}, which does not exist"
+
+
+def test_every_relative_link_of_the_docs_points_to_a_file_and_a_heading():
+    """Every docs page, README.md and every experiment's README: a link names a file that exists
+    and, after `#`, a heading of that file (as GitHub makes a heading's anchor)."""
+    pages = [*sorted((ROOT / "docs").glob("*.md")), ROOT / "README.md",
+             ROOT / "experiments" / "README.md", *sorted(EXPERIMENTS.glob("*/README.md"))]
+    broken = []
+    for page in pages:
+        for target in re.findall(r"\]\(([^)\s]+)\)", page.read_text(encoding="utf-8")):
+            if "://" in target:
+                continue
+            path, _, anchor = target.partition("#")
+            dest = (page.parent / path) if path else page
+            where = f"{page.relative_to(ROOT)} -> {target}"
+            if not dest.exists():
+                broken.append(f"{where}: no such file")
+            elif anchor and dest.suffix == ".md" and anchor not in _anchors(dest):
+                broken.append(f"{where}: no such heading")
+    assert not broken, "\n".join(broken)
+
+
+def _anchors(page: Path) -> set[str]:
+    """The anchors of a markdown file's headings, as GitHub makes them."""
+    out, fenced = set(), False
+    for line in page.read_text(encoding="utf-8").splitlines():
+        if line.lstrip().startswith("```"):
+            fenced = not fenced
+        elif not fenced and line.startswith("#"):
+            title = re.sub(r"[^a-z0-9 _-]", "", line.lstrip("#").strip().lower())
+            out.add(title.replace(" ", "-"))
+    return out
+
+
+# -- the docs describe the product as it is ------------------------------------------------------
+PAGE_LINES = 400
+"""The most lines a docs page holds: a longer one serves two readers and is split."""
+COMMIT = re.compile(r"\b(?=[0-9a-f]*[0-9])(?=[0-9a-f]*[a-f])[0-9a-f]{7,40}\b")
+"""A commit hash: a word of 7 to 40 hex digits with both a digit and a letter."""
+
+
+@pytest.mark.parametrize("page", sorted((ROOT / "docs").glob("*.md")), ids=lambda p: p.name)
+def test_every_docs_page_is_at_most_400_lines(page):
+    lines = len(page.read_text(encoding="utf-8").splitlines())
+    assert lines <= PAGE_LINES, (f"docs/{page.name} has {lines} lines: split it where it serves "
+                                 f"two readers (at most {PAGE_LINES} a page)")
+
+
+def _text_files() -> list[Path]:
+    """The docs, the README, the experiments' READMEs and suites, the tests, the benchmarks and
+    the examples: every text a reader or a test reads, but the tests' data."""
+    files = [*(ROOT / "docs").glob("*.md"), ROOT / "README.md", *EXPERIMENTS.rglob("*.md"),
+             *EXPERIMENTS.rglob("*.toml"), *(ROOT / "benchmarks").rglob("*.py")]
+    files += [p for p in (ROOT / "tests").rglob("*.py") if "data" not in p.parts]
+    files += [p for p in (ROOT / "examples").rglob("*")
+              if p.suffix in (".py", ".md", ".toml") and "egg-info" not in str(p)]
+    return sorted(p for p in files if "__pycache__" not in p.parts)
+
+
+def test_no_commit_hash_outside_the_provenance_lines():
+    """History lives in git: no docs page, test, benchmark or example names a commit. The one
+    exception is the provenance line of docs/RESULTS.md and of each experiment's README, which
+    says which code made the rows: at most one line of such a file may name commits."""
+    provenance = {ROOT / "docs" / "RESULTS.md", *EXPERIMENTS.glob("*/README.md")}
+    found = []
+    for path in _text_files():
+        hits = [f"{path.relative_to(ROOT)}:{i}: {line.strip()}"
+                for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+                if COMMIT.search(line)]
+        if path in provenance and len(hits) <= 1 and all("commit" in h for h in hits):
+            continue
+        found += hits
+    assert not found, "commit hashes outside a provenance line:\n" + "\n".join(found)
+
+
+def test_the_hash_pattern_finds_hashes_and_nothing_else():
+    short, full = "d34e" + "1de", "5e84" + "457a0b"          # split, so that this file holds none
+    assert COMMIT.search(f"made at commit {short}.") and COMMIT.search(f"git show {full}:x")
+    for text in ("1234567", "deadbeef", "0x9e3779b97f4a7c15", "e85c", "a" * 41 + "1"):
+        assert not COMMIT.search(text), text

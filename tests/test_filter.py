@@ -124,7 +124,7 @@ def test_with_no_spread_the_belief_is_the_population_curve():
         assert np.array_equal(out["fatigue_onset"], np.ones((1, 4, 1)))
         assert np.array_equal(out["fatigue_slope"], np.full((1, 4, 1), 0.3))
         assert np.array_equal(out["fatigue_weight"], np.ones((1, 4, 1)))
-        # the population line, whatever the noise: revision 2's fatigue, bit for bit
+        # the population line, whatever the noise, exactly
         assert np.array_equal(fatigue_now(out), tables.fatigue(hours + epoch, FLOOR))
 
 

@@ -100,7 +100,7 @@ def test_every_array_a_decision_maker_receives_is_a_read_only_copy():
 
 
 class EndsWithTheWorld(GreedyPolicy):
-    """Written against the old contract: a decision-maker with ata_episode_end got `sim`."""
+    """A decision-maker implementing ata_episode_end, the hook that hands a component `sim`."""
 
     @hookimpl
     def ata_episode_end(self, sim):

@@ -1,6 +1,6 @@
 """The re-tasking cost of docs/model.md: re-briefed humans, re-planned robots, on tiny
 hand-built scenarios with the expected numbers worked out by hand in the comments; free
-reallocation when both costs are 0, bit for bit; greedy's keep rule.
+reallocation when both costs are 0, exactly; greedy's keep rule.
 
 Conventions as in tests/_support.py (robots start at the base (1000, 1000); codes there).
 """
@@ -225,30 +225,28 @@ def test_reallocating_the_same_allocation_every_epoch_is_free():
     assert always.sim.record.metrics["replans"].tolist() == [0.0]
 
 
-# --- both costs at 0: today's free reallocation, bit for bit ----------------------------------------
+# --- both costs at 0: free reallocation, exactly ---------------------------------------------------
 
 @pytest.mark.parametrize("case", ["greedy_on_event", "greedy_always", "random_always",
                                   "greedy_always_b_high"])
 def test_both_costs_zero_reproduce_free_reallocation_exactly(case):
-    # tests/data/free_reallocation.json holds the per-scenario results of the code before the
-    # re-tasking cost (commit c1e16e6), under this version's world generator: commit 470337e,
-    # whose rows here equalled c1e16e6's under the generator of both, was run with
-    # ata/core/rng.py of this version. 40 scenarios of seed 77 of the greedy mission with
+    # tests/data/free_reallocation.json holds the per-scenario results of a model without the
+    # re-tasking cost: 40 scenarios of seed 77 of the greedy mission with
     #   greedy_on_event: as it stands; greedy_always / random_always: condition 'always'
     #   (random: random initial and reallocation); greedy_always_b_high: setting (b), high;
     # each without the latency injector (fatigue noise, attribute changes and robot failures
-    # on). Under latency the code of c1e16e6 told policies the true reallocatable POIs, where
-    # today they see them as observed (stale rows included), so the two differ there by design.
+    # on): that model's policies were told the true reallocatable POIs, where here they see
+    # them as observed (stale rows included), so the two differ under latency by design.
     sets = {"greedy_on_event": ["components.condition='on_event'"],
             "greedy_always": ["components.condition='always'"],
             "random_always": ["components.condition='always'", "components.initial='random'",
                               "components.reallocation='random'"],
             "greedy_always_b_high": ["components.condition='always'", "mission.setting='b'",
                                      "mission.uncertainty='high'"]}[case]
-    # The random policy of c1e16e6 drew from the world's generator, which no decision-maker
-    # may reach now: the test hands the one it runs that generator itself.
-    # The code of c1e16e6 was of model revision 2: spread 0, and its policies computed
-    # fatigue from the working hours, which the oracle's exact fatigue belief reproduces.
+    # In those rows the random policy draws from the world's generator, which no
+    # decision-maker may reach: the test hands the one it runs that generator itself. Every
+    # human is on the population line (spread 0) and the policies compute fatigue from the
+    # working hours, which the oracle's exact fatigue belief reproduces.
     golden = json.loads(GOLDEN.read_text())[case]
     s = load_session(str(BASELINE_MISSION), ["mission.scenarios=40", "mission.seed=77",
                                              "mission.batch_size=40", *sets, *costs(0.0, 0.0),
@@ -274,8 +272,8 @@ def test_both_costs_zero_reproduce_free_reallocation_exactly(case):
 
 
 class OnWorldStreams:
-    """A policy deciding with the world's generator in its context (`rng`, set by the test):
-    what every policy drew from before decision-makers had a generator of their own."""
+    """A policy deciding with the world's generator in its context (`rng`, set by the test),
+    as the policies of the golden rows do."""
 
     def __init__(self, policy):
         self.policy, self.rng = policy, None

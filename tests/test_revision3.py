@@ -1,7 +1,8 @@
-"""model revision 3: individual hidden fatigue, and its spread 0 giving revision 2 bit for bit.
+"""Individual hidden fatigue, and its spread 0 putting every human on the population line.
 
-tests/data/rev2_golden.json holds per-scenario results of the code before individual fatigue
-(revision 2, commit 73f148f, run with this version's world generator, ata/core/rng.py), seed 0: ``random_a_high`` the random mission
+tests/data/rev2_golden.json holds per-scenario results of the population-line model (every
+human's fatigue a function of the working hours, the policies computing it from them), seed 0:
+``random_a_high`` the random mission
 (examples/missions/random_baseline.toml) at (a) high, 8 scenarios; ``greedy_a_high`` and
 ``greedy_b_high`` the greedy mission (ata/missions/greedy.toml) at (a) high, 8 scenarios, and at
 (b) high, 4 scenarios.
@@ -86,9 +87,9 @@ def test_true_fatigue_follows_each_humans_curve_and_is_hidden():
 
 
 @pytest.mark.parametrize("case", ["greedy_a_high", "greedy_b_high"])
-def test_greedy_with_the_oracles_fatigue_is_revision_2_bit_for_bit(case):
-    # at spread 0 the exact belief of one curve is revision 2's line: greedy handed the true
-    # fatigue plans as revision 2's greedy, which computed it from the working hours
+def test_greedy_with_the_oracles_fatigue_at_spread_0_is_the_population_line_model(case):
+    # at spread 0 the exact belief of one curve is the population line: greedy handed the true
+    # fatigue plans as a greedy that computes it from the working hours
     got = run(case, "human.fatigue_spread=0", "components.reconstructors=['identity', 'oracle']",
               "oracle.channels=['fatigue']")
     assert got == GOLDEN[case]
@@ -96,7 +97,7 @@ def test_greedy_with_the_oracles_fatigue_is_revision_2_bit_for_bit(case):
 
 def test_greedy_reads_the_fatigue_it_is_given():
     # with identity it reads the noisy observation, moved along the population line: not
-    # revision 2's plans even at spread 0
+    # the population-line model's plans even at spread 0
     assert run("greedy_a_high", "human.fatigue_spread=0")["total"] != GOLDEN["greedy_a_high"]["total"]
 
 
