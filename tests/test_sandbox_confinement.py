@@ -7,6 +7,7 @@ import subprocess
 import sys
 import tempfile
 import textwrap
+import uuid
 
 import pytest
 
@@ -68,12 +69,13 @@ def test_what_the_method_is_shown_cannot_be_remounted_or_written():
 
 
 def test_the_sandbox_writes_only_its_own_tmp():
-    done = inside("""
-        open("/tmp/mine", "w").write("x")
-        print(open("/tmp/mine").read())
+    name = f"/tmp/ata-sandbox-{uuid.uuid4().hex}"
+    done = inside(f"""
+        open({name!r}, "w").write("x")
+        print(open({name!r}).read())
     """)
     assert done.returncode == 0 and done.stdout.strip() == "x", done.stderr
-    assert not os.path.exists("/tmp/mine") or open("/tmp/mine").read() != "x"
+    assert not os.path.exists(name)          # its /tmp was its own, and ended with it
 
 
 def test_the_memory_and_output_limits_hold_inside():

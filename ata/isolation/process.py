@@ -39,7 +39,8 @@ from ata.core.mission import SLOT_KINDS, Mission
 from ata.core.registry import Register
 from ata.isolation.remote import RemoteComponent, code_locations
 from ata.runtime import memory, sandbox
-from ata.runtime.frames import FrameError, HostPipe, PeerGone, PeerTimeout
+from ata.runtime.frames import (HEADER_ONLY, MAX_FRAME, FrameError, HostPipe, PeerGone,
+                                PeerTimeout)
 from ata.runtime.inputs import resolve
 from ata.runtime.messages import Op
 
@@ -143,7 +144,7 @@ def _ask_once(isolation: Isolation, req: dict[str, Any], what: str,
                               binds + list(files), isolation)
     try:
         header, _ = process.call({**req, "paths": paths + list(folders)},
-                                 isolation.startup_timeout_s, what)
+                                 isolation.startup_timeout_s, what, HEADER_ONLY)
     finally:
         process.close()
     return header
@@ -286,16 +287,17 @@ class DecisionProcess:
         except (PeerGone, PeerTimeout):
             self._failed("start")
 
-    def call(self, req: dict[str, Any], limit: float, what: str
+    def call(self, req: dict[str, Any], limit: float, what: str, max_bytes: int = MAX_FRAME
              ) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         """Send a request and wait for its answer, at most `limit` seconds (a DecisionTimeout
-        past it, the process killed); a ChildFailed for an error in the process."""
+        past it, the process killed) and `max_bytes` long (`frames.answer_limit`); a
+        ChildFailed for an error in the process or an answer out of bounds."""
         if not self.alive:
             raise ChildFailed("the decision process has ended")
         if not self.ready:
             limit_s = self.isolation.startup_timeout_s
             try:
-                header, _ = self.pipe.recv(time.monotonic() + limit_s)
+                header, _ = self.pipe.recv(time.monotonic() + limit_s, HEADER_ONLY)
             except PeerTimeout:
                 self.kill()
                 raise ChildFailed(f"the decision process did not build the method within "
@@ -307,7 +309,7 @@ class DecisionProcess:
         try:
             deadline = time.monotonic() + limit
             self.pipe.send(req, deadline)
-            header, arrays = self.pipe.recv(deadline)
+            header, arrays = self.pipe.recv(deadline, max_bytes)
         except PeerTimeout:
             self.kill()
             raise DecisionTimeout(f"{what} took longer than the decision time limit of "

@@ -25,6 +25,7 @@ from ata.core.registry import Register
 from ata.core.state import Allocation
 from ata.isolation.process import (TIMEOUT_COLUMN, DecisionProcess, DecisionTimeout,
                                     Isolation, acquire, release)
+from ata.runtime.frames import HEADER_ONLY, answer_limit
 from ata.runtime.messages import ALLOCATION, Op
 
 
@@ -69,7 +70,7 @@ class Link:
         if self.timed_out is not None:
             return None
         try:
-            return self.process.call(req, self.limit, what)
+            return self.process.call(req, self.limit, what, answer_limit(self.batch))
         except DecisionTimeout as exc:
             if fatal:
                 raise DecisionTimeout(f"{exc}: an initial allocation is needed to run at all, "
@@ -133,7 +134,7 @@ class InitialProxy(_Proxy):
     @hookimpl
     def ata_trained_on(self):
         header, _ = self.link.process.call({"op": Op.TRAINED_ON}, self.link.limit,
-                                           "ata_trained_on")
+                                           "ata_trained_on", HEADER_ONLY)
         out = []
         for ranges in header.get("ranges", []):
             for r in ranges:
@@ -180,7 +181,7 @@ class ConditionProxy(_Proxy):
         if answer is None:
             return np.zeros(self.link.batch, dtype=bool)   # the allocation in force stays
         active = answer[1].get("active")
-        if active is None or active.dtype != bool:
+        if active is None or active.dtype != bool or active.shape != (self.link.batch,):
             raise ContractError(f"condition policy {self.component_name!r} answered no (B,) "
                                 "bool array")
         return active

@@ -278,6 +278,13 @@ def _stand_in(registry: Register, answer: Any, remote: list[tuple[str, str]],
             resolved = item.get("resolved")
             if not (isinstance(resolved, str) and NAME.fullmatch(resolved)):
                 raise ContractError(f"the decision process named {name!r} {resolved!r}")
+            taken = [k for k in kind.split(",") if (k, resolved) in registry.components
+                     or (k, resolved) in declared_components()]
+            if taken:
+                raise MissionError("[components]", None, f"{ref.source} names its component "
+                                   f"{resolved!r}, the name of a {taken[0]} ata already has: a "
+                                   "method from a file may not take another's name (give its "
+                                   "class another name, or another `name` attribute)")
             if item.get("sha256") != ref.sha256:
                 raise MissionError("[components]", None, f"{ref.path} changed while it was "
                                    "being loaded: run it again")

@@ -4,7 +4,8 @@ Two directions, two formats. Host -> child: a pickle (the host is trusted, and t
 rebuild the mission's settings dataclasses and the observation tables). Child -> host: never a
 pickle, since unpickling runs code the sender chooses; a *safe frame* instead, a small JSON
 header and raw numeric arrays whose dtype (from a fixed list), shape and length the host checks
-before it makes an array of the bytes.
+before it makes an array of the bytes; each array starts at a multiple of 8 bytes (the header
+and the arrays are padded), so the host's arrays are views of the frame it read, not copies.
 
 Every frame on the pipe is an 8-byte little-endian length and that many bytes. The host reads
 and writes with a deadline (`HostPipe`): a child that stops answering, or stops reading, costs
@@ -33,6 +34,13 @@ SAFE_DTYPES = frozenset({"|b1", "|i1", "<i2", "<i4", "<i8", "|u1", "<u2", "<u4",
 """The array dtypes a safe frame may carry: booleans, integers and floats, little-endian. Checked
 as strings before numpy parses one, so no object or structured dtype is ever made."""
 MAX_HEADER = 1 << 20
+MAX_DEPTH = 16
+"""How deep a safe frame's JSON header may nest: its answers are flat (a list of ranges is the
+deepest, three levels); deeper is a broken or hostile peer."""
+HEADER_ONLY = MAX_HEADER + 8
+"""The longest answer that carries a header alone (a resolve, a probe, a start, trained_on)."""
+PER_SCENARIO = 1 << 20
+"""The bytes an answer may take per scenario of its batch (`answer_limit`)."""
 _LEN = struct.Struct("<Q")
 _HEAD = struct.Struct("<I")
 
@@ -60,25 +68,47 @@ def encode_safe(header: dict[str, Any], arrays: dict[str, np.ndarray] | None = N
             raise FrameError(f"array {name!r} has dtype {arr.dtype}, which a safe frame cannot "
                              "carry (booleans, integers and floats only)")
         layout.append([str(name), arr.dtype.str, [int(n) for n in arr.shape], int(arr.nbytes)])
-        blobs.append(arr.tobytes())
+        blobs.append(arr.tobytes() + b"\0" * (-arr.nbytes % 8))    # the next one aligned
     head = json.dumps({**header, "arrays": layout}).encode("utf-8")
+    head += b" " * (-(_HEAD.size + len(head)) % 8)      # the first array starts aligned
     return _HEAD.pack(len(head)) + head + b"".join(blobs)
 
 
-def decode_safe(payload: bytes) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+def answer_limit(batch: int) -> int:
+    """The largest answer a decision call of a batch of `batch` scenarios may send: every array
+    of an answer is per scenario (allocations, masks, reconstructions, results columns), so a
+    bound per scenario and a header bounds it, whatever the method."""
+    return MAX_HEADER + _HEAD.size + PER_SCENARIO * max(int(batch), 1)
+
+
+def _depth(value: Any) -> int:
+    """How deep a parsed JSON value nests (a scalar 0)."""
+    if isinstance(value, dict):
+        return 1 + max((_depth(v) for v in value.values()), default=0)
+    if isinstance(value, list):
+        return 1 + max((_depth(v) for v in value), default=0)
+    return 0
+
+
+def decode_safe(payload: bytes | bytearray) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """The header and the arrays of a safe frame; a FrameError for anything out of format. Only
-    JSON is parsed and only numeric arrays are made: nothing in the payload can run code."""
+    JSON is parsed and only numeric arrays are made: nothing in the payload can run code. The
+    arrays are views of `payload` (one copy of an answer: the frame read)."""
     if len(payload) < _HEAD.size:
         raise FrameError("a frame shorter than its header length")
     (n,) = _HEAD.unpack_from(payload)
     if n > MAX_HEADER or _HEAD.size + n > len(payload):
         raise FrameError(f"a header length of {n} bytes does not fit the frame")
     try:
-        header = json.loads(payload[_HEAD.size:_HEAD.size + n].decode("utf-8"))
+        header = json.loads(bytes(payload[_HEAD.size:_HEAD.size + n]).decode("utf-8"))
     except (UnicodeDecodeError, ValueError) as exc:
         raise FrameError(f"a header that is not JSON: {exc}") from None
+    except RecursionError:
+        raise FrameError("a header nested too deep to read") from None
     if not isinstance(header, dict) or not isinstance(header.get("arrays", []), list):
         raise FrameError("a header that is not a JSON object with an array list")
+    if _depth(header) > MAX_DEPTH:
+        raise FrameError(f"a header nested deeper than {MAX_DEPTH} levels")
     arrays: dict[str, np.ndarray] = {}
     offset = _HEAD.size + n
     for item in header.pop("arrays", []):
@@ -94,9 +124,10 @@ def decode_safe(payload: bytes) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
                 or offset + nbytes > len(payload):
             raise FrameError(f"array {name!r}: {nbytes} bytes do not make shape {shape} of "
                              f"{dtype}, or run past the frame")
-        arrays[name] = np.frombuffer(payload, dtype=dt, count=nbytes // dt.itemsize,
-                                     offset=offset).reshape(shape).copy()
-        offset += nbytes
+        view = np.frombuffer(payload, dtype=dt, count=nbytes // dt.itemsize,
+                                 offset=offset).reshape(shape)
+        arrays[name] = view if view.flags.aligned else view.copy()
+        offset += nbytes + (-nbytes % 8)
     if offset != len(payload):
         raise FrameError("bytes left over after the last array")
     return header, arrays
@@ -136,24 +167,30 @@ class HostPipe:
                 raise PeerGone("the decision process closed its input") from None
             data = data[n:]
 
-    def recv(self, deadline: float) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    def recv(self, deadline: float, limit: int = MAX_FRAME
+             ) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """The next safe frame, refused (a FrameError) before it is read when it is longer than
+        `limit` bytes (the call's `answer_limit`)."""
         (n,) = _LEN.unpack(self._read(_LEN.size, deadline))
-        if n > MAX_FRAME:
-            raise FrameError(f"a frame of {n} bytes, over the limit of {MAX_FRAME}")
+        limit = min(limit, MAX_FRAME)
+        if n > limit:
+            raise FrameError(f"an answer of {n} bytes, over the limit of {limit} for this call")
         return decode_safe(self._read(n, deadline))
 
-    def _read(self, n: int, deadline: float) -> bytes:
-        out = bytearray()
-        while len(out) < n:
+    def _read(self, n: int, deadline: float) -> bytearray:
+        """`n` bytes, read into one buffer."""
+        out = bytearray(n)
+        view, got = memoryview(out), 0
+        while got < n:
             self._wait(self.rfd, deadline, write=False)
             try:
-                chunk = os.read(self.rfd, min(n - len(out), 1 << 22))
+                k = os.readv(self.rfd, [view[got:got + min(n - got, 1 << 22)]])
             except BlockingIOError:
                 continue
-            if not chunk:
+            if not k:
                 raise PeerGone("the decision process closed its output")
-            out += chunk
-        return bytes(out)
+            got += k
+        return out
 
     @staticmethod
     def _wait(fd: int, deadline: float, write: bool) -> None:
