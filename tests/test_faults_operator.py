@@ -73,3 +73,49 @@ def test_a_full_disk_leaves_no_half_set_and_the_good_set_untouched(cli, evaluate
     result = cli("publish", evaluated, "-o", out)       # and replaced when the disk has room
     assert result.exit_code == 0, result.output
     assert snapshot(out) == good
+
+
+# --- 9. a folder of seeds is a folder kind, with bounded seeds ------------------------------------
+
+@pytest.fixture
+def no_training(monkeypatch):
+    """Training refused outright: what the commands below do must be refused before it."""
+    from ata.experiment import training
+
+    def trained(*args, **kwargs):
+        raise AssertionError("a training started")
+    monkeypatch.setattr(training, "train_one", trained)
+    monkeypatch.setattr(training, "train_seeds", trained)
+
+
+def test_seeds_and_a_training_run_never_write_over_each_other(cli, tmp_path, no_training):
+    run = tmp_path / "run"
+    run.mkdir()
+    for name in ("checkpoint.pt", "log.csv", "mission.resolved.toml"):
+        (run / name).write_text("kept", encoding="utf-8")
+    result = cli("train", "--plugins", "trp", "--seeds", "2", "-o", run)
+    assert_user_error(result, f"{run} is the folder of a training run", "--resume")
+    assert sorted(p.name for p in run.iterdir()) == \
+        ["checkpoint.pt", "log.csv", "mission.resolved.toml"]
+    seeds = tmp_path / "seeds"
+    seeds.mkdir()
+    (seeds / "seeds.json").write_text('{"seeds": [0]}', encoding="utf-8")
+    result = cli("train", "--plugins", "trp", "-o", seeds)
+    assert_user_error(result, f"{seeds} is the folder of training seeds (seeds.json)",
+                      f"ata train --resume {seeds}")
+    assert sorted(p.name for p in seeds.iterdir()) == ["seeds.json"]
+    result = cli("run", "-q", "-o", seeds)
+    assert_user_error(result, f"{seeds} is the folder of training seeds")
+
+
+@pytest.mark.parametrize("seeds, message", [
+    ("", "'': give a count (3) or a list of seeds (1,2,5)"),
+    (",", "',': give a count (3) or a list of seeds (1,2,5)"),
+    ("1000000000", "the count must be 1 to 1,000"),
+    (",".join(map(str, range(1001))), "1,001 seeds: at most 1,000"),
+    ("9" * 30_000, "at most 1,000 seeds"),
+])
+def test_seeds_are_bounded_before_any_work(cli, tmp_path, no_training, seeds, message):
+    assert_user_error(cli("train", "--plugins", "trp", "--seeds", seeds, "-o", tmp_path / "o"),
+                      message)
+    assert not (tmp_path / "o").exists()

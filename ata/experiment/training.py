@@ -71,6 +71,7 @@ def train(mission: str | None = None, overrides: list[str] | None = None,
         session = load_session(str(resume / fd.RESOLVED))
         on_start(resume, None)
         return Trained(resume, train_one(session, resume, True, bar))
+    values = fd.parse_seeds(seeds) if seeds is not None else None      # bounded, before work
     source = mission or str(training_mission_for(plugins or ["ctr", "aux"]))
     extra = plugins if mission else None      # a mission file brings its own plugins
     overrides = list(overrides or [])
@@ -80,13 +81,14 @@ def train(mission: str | None = None, overrides: list[str] | None = None,
         factory = session.registry.get("trainer", name, "[components] trainer").factory
         overrides = preset_overrides(name, factory, preset) + overrides
         session = load_session(source, overrides, extra)
-    run_dir = prepare_out_dir(out, kind="train") if out else \
+    # a folder of seeds and a training run are folders of two kinds: neither is written over
+    # by the other
+    run_dir = prepare_out_dir(out, kind="train" if seeds is None else "seeds") if out else \
         default_out_dir(session.mission, prefix="train-")
-    if seeds is None:
+    if values is None:
         session = with_weights(source, overrides, extra, session, run_dir)
         on_start(run_dir, None)
         return Trained(run_dir, train_one(session, run_dir, False, bar))
-    values = fd.parse_seeds(seeds)
     if fd.is_seeds_folder(run_dir):
         raise MissionError("--out", None, f"{run_dir} holds seeds already: go on with ata "
                            f"train --resume {run_dir}, or choose another folder")

@@ -68,6 +68,7 @@ def new_folder(path: Path) -> Path:
 
 
 KINDS: dict[str, tuple[str, tuple[str, ...], str]] = {
+    "seeds": ("training seeds", ("seeds.json",), "resume them with ata train --resume {dir}"),
     "train": ("a training run", ("checkpoint.pt", "best.pt", "log.csv"),
               "resume it with ata train --resume {dir}"),
     "eval": ("an evaluation", ("eval.json",), "go on with it with ata eval --out {dir}"),

@@ -33,18 +33,31 @@ def is_run_folder(path: str | Path) -> bool:
         and not (p / "results.csv").exists()
 
 
+SEEDS_LIMIT = 1000
+"""The most seeds one folder trains: each seed is a whole training run and a folder of its own."""
+
+
 def parse_seeds(text: str) -> list[int]:
-    """``--seeds``: a count N (seeds 0 .. N-1) or a list ``1,2,5``."""
-    parts = [t.strip() for t in str(text).split(",") if t.strip()]
+    """``--seeds``: a count N (seeds 0 .. N-1) or a list ``1,2,5``, at most `SEEDS_LIMIT` seeds
+    (the trainer's settings bound each seed)."""
+    text = str(text)
+    if len(text) > 24 * SEEDS_LIMIT:
+        raise MissionError("--seeds", None, f"at most {SEEDS_LIMIT:,} seeds")
+    parts = [t.strip() for t in text.split(",") if t.strip()]
     try:
         values = [int(t) for t in parts]
     except ValueError:
+        values = []
+    if not values:
         raise MissionError("--seeds", None, f"{text!r}: give a count (3) or a list of seeds "
-                           "(1,2,5)") from None
-    if len(values) == 1 and "," not in str(text):
-        if values[0] < 1:
-            raise MissionError("--seeds", None, "the count must be 1 or more")
+                           "(1,2,5)")
+    if len(values) == 1 and "," not in text:
+        if not 1 <= values[0] <= SEEDS_LIMIT:
+            raise MissionError("--seeds", None, f"the count must be 1 to {SEEDS_LIMIT:,} (each "
+                               "seed is a whole training run)")
         return list(range(values[0]))
+    if len(values) > SEEDS_LIMIT:
+        raise MissionError("--seeds", None, f"{len(values):,} seeds: at most {SEEDS_LIMIT:,}")
     if len(set(values)) != len(values) or any(v < 0 for v in values):
         raise MissionError("--seeds", None, f"{text!r}: the seeds must differ and be >= 0")
     return values
