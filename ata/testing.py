@@ -17,7 +17,7 @@ with what broke.
 
 It is a linter for honest mistakes, not a gate: code that means to peek can recognise the check,
 or read the world some way no check foresees. Ranking methods one does not trust is done apart,
-with ``ata eval --isolate`` (docs/evaluation.md).
+with ``ata eval --isolate`` (docs/isolation.md).
 
 A policy fills the slots whose hooks it implements: with ``ata_initial_allocation`` the initial
 slot (else ``greedy`` does); with ``ata_reallocate`` the reallocation slot, called at every
@@ -306,7 +306,7 @@ def _nondeterminism(kind: str, name: str, base: Trace, again: Trace, ids: list[i
         f"{_value(again.decided[k], what, s, index)} in the other, on the same observations. "
         "It draws from a generator other than ctx.rng (numpy's global np.random, the random "
         "module, torch's global generator) or from the clock: draw every random number from "
-        "ctx.rng streams (docs/plugins.md, 'Random numbers')")
+        "ctx.rng streams (docs/hooks.md, 'Random numbers')")
 
 
 def _integrity(kind: str, name: str, base: Trace, mission: Mission, registry: Any,
@@ -335,7 +335,7 @@ def _integrity(kind: str, name: str, base: Trace, mission: Mission, registry: An
             f"{_value(other.decided[k], what, s, index)} with the unseen draws ({stream}) "
             f"drawn again; what it observed was the same in both runs {until}. A "
             "decision-maker decides from I, the observed S, the allocation in force, its "
-            "settings and ctx.rng alone (docs/plugins.md, 'Submitting a method')")
+            "settings and ctx.rng alone (docs/decisions.md, 'Submitting a method')")
 
 
 def check_component(kind: str, factory: Callable[..., Any], *, name: str = "under_test",

@@ -46,7 +46,7 @@ MarkdownOption = typer.Option(False, "--markdown", help="Print the tables as Mar
 IsolateOption = typer.Option(False, "--isolate",
                              help="Run the decision components (untrusted methods) in a "
                                   "sandboxed process apart from the world (bubblewrap; pip "
-                                  "install 'ata[sandbox]'); see docs/evaluation.md.")
+                                  "install 'ata[sandbox]'); see docs/isolation.md.")
 TimeoutOption = typer.Option(60.0, "--decision-timeout", min=0.001, metavar="SECONDS",
                              help="With --isolate: the time limit of one decision call of a "
                                   "batch (default 60).")

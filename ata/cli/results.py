@@ -172,7 +172,7 @@ def publish(eval_dir: Path = typer.Argument(..., metavar="EVAL_DIR",
         -> None:
     """Publish an evaluation's per-scenario rows with the code and weight digests, model
     revision and scenarios they were made with, for `ata compare A published:NAME` to pair new
-    methods against without rerunning them (docs/evaluation.md, "Published rows")."""
+    methods against without rerunning them (docs/reports.md, "Published rows")."""
     from ata.published import sets as published   # on use: start-up time
 
     folder = published.publish(eval_dir, out)
