@@ -62,6 +62,9 @@ class Backend(Protocol):
                   on_epoch: OnEpoch | None = None) -> Part:
         """One batch's per-scenario results."""
 
+    def notes(self, mission: Mission) -> list[str]:
+        """What the user should know before a plan of `mission` runs here."""
+
     def open(self, parallel: bool) -> None:
         """A plan of units starts (on worker processes when ``parallel``)."""
 
@@ -107,6 +110,9 @@ class InProcess:
                   on_epoch: OnEpoch | None = None) -> Part:
         registry = registry if registry is not None else self.worker_registry(mission)
         return batch_part(ids, Simulation(mission, registry, ids).run(on_epoch=on_epoch))
+
+    def notes(self, mission: Mission) -> list[str]:
+        return []
 
     def open(self, parallel: bool) -> None:
         pass

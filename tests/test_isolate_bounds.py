@@ -14,7 +14,7 @@ import pytest
 from ata.core.errors import MissionError
 from ata.core.mission import read_toml
 from ata.isolation.remote import isolated_registry
-from ata.runtime import frames
+from ata.runtime import frames, sandbox
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "policies"
 
@@ -66,3 +66,17 @@ def test_a_method_from_a_file_cannot_take_a_builtin_name(tmp_path):
     raw = read_toml(str(mission))
     with pytest.raises(MissionError, match="'greedy', the name of a policy ata already has"):
         isolated_registry(raw, [], str(mission), lying, lambda entry_point: {"components": []})
+
+
+@pytest.mark.skipif(sandbox.unavailable() is not None, reason=str(sandbox.unavailable()))
+def test_isolate_on_a_public_seed_says_a_ranking_needs_a_secret_one(cli, tmp_path, monkeypatch):
+    base = ["run", "builtin:greedy", "--set", "mission.scenarios=2", "--set",
+            "mission.horizon_s=600", "--isolate"]
+    public = cli(*base, "--out", str(tmp_path / "public"))
+    assert public.exit_code == 0, public.output
+    assert "--isolate on the public seed 0" in " ".join(public.output.split())
+    monkeypatch.setenv("ATA_TEST_BOUNDS_SEED", str(2**40 + 12345))
+    secret = cli(*base, "--set", "mission.seed='env:ATA_TEST_BOUNDS_SEED'",
+                 "--out", str(tmp_path / "secret"))
+    assert secret.exit_code == 0, secret.output
+    assert "public seed" not in secret.output

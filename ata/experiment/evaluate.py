@@ -290,6 +290,8 @@ def eval_plan(suites: list[Suite], jobs: list[Job], chunk_size: int = DEFAULT_CH
                 key=plan_key(jobs, chunk_size),
                 describe={**(describe or {}), "code": plan_code(jobs)},
                 unit_name="work units", title=f"eval: {len(jobs)} (method, setting, level)",
+                notes=list(dict.fromkeys(n for j in jobs for n in j.session.backend.notes(
+                    j.mission))),
                 default_out=lambda: default_out_dir(suites), command="eval")
 
 

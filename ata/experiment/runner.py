@@ -99,7 +99,7 @@ def mission_plan(session: Session, workers: int | None = None,
     m = session.mission
     workers = workers or m.settings.workers
     chunks = chunks_of(m, workers, chunk_size)
-    notes = []
+    notes = list(session.backend.notes(m))
     # a batch too big for memory is cut smaller (the rows do not depend on the batches)
     size, limit = max(int(c.size) for c in chunks), memory.memory_limit()
     fits = memory.largest_batch(m, size, workers, limit)

@@ -50,6 +50,13 @@ class Isolated(Isolation):
         with isolated_simulation(mission, registry, ids, self) as sim:
             return batch_part(ids, sim.run(on_epoch=on_epoch))
 
+    def notes(self, mission: Mission) -> list[str]:
+        if mission.secret_seed:
+            return []
+        return [f"--isolate on the public seed {mission.seed_label}: a method can recognise "
+                "the scenarios of a seed it can guess; a ranking of untrusted methods needs a "
+                "secret one (seed = 'env:NAME'; docs/isolation.md)"]
+
     def open(self, parallel: bool) -> None:
         if parallel:        # those the validation started here serve no worker process
             close_idle()

@@ -57,6 +57,9 @@ class PublishedRows:
     def worker_registry(self, mission: Mission) -> None:
         return None
 
+    def notes(self, mission: Mission) -> list[str]:
+        return []
+
     def open(self, parallel: bool) -> None:
         pass
 
