@@ -119,3 +119,87 @@ def test_seeds_are_bounded_before_any_work(cli, tmp_path, no_training, seeds, me
     assert_user_error(cli("train", "--plugins", "trp", "--seeds", seeds, "-o", tmp_path / "o"),
                       message)
     assert not (tmp_path / "o").exists()
+
+
+# --- 10. errors in workers cross as plain data ----------------------------------------------------
+
+EDITS = '''"""A policy that edits its own file once a worker process has used it: the next unit's
+worker resolves the file again and refuses it (a method file edited mid-run)."""
+import multiprocessing
+
+import numpy as np
+
+from ata import hookimpl
+from ata.core.state import Allocation
+
+
+class Edits:
+    name = "edits"
+
+    def __init__(self, settings, mission):
+        pass
+
+    @hookimpl
+    def ata_initial_allocation(self, ctx):
+        if multiprocessing.parent_process() is not None:
+            with open(__file__, "a", encoding="utf-8") as f:
+                f.write("# edited\\n")
+        zeros = np.zeros(ctx.inherent["tasks"].col("kind").shape, dtype=np.int64)
+        return Allocation(zeros, zeros - 1, zeros.copy())
+'''
+
+
+def test_a_refusal_in_a_worker_is_the_same_line_and_the_units_before_it_are_saved(cli,
+                                                                                 tmp_path):
+    (tmp_path / "edits.py").write_text(EDITS, encoding="utf-8")
+    mission = tmp_path / "m.toml"
+    mission.write_text('[mission]\nname = "small"\nsetting = "custom"\nhumans = 2\nrobots = 3\n'
+                       'tasks = 10\nscenarios = 6\nhorizon_s = 600.0\n[components]\n'
+                       'initial = "./edits.py:Edits"\ncondition = "never"\n', encoding="utf-8")
+    out = tmp_path / "out"
+    result = cli("run", mission, "-q", "--chunk-size", 2, "-e", "process", "-w", 1, "-o", out)
+    assert_user_error(result, f"[references] key 'edits': {tmp_path / 'edits.py'} changed while "
+                              "the run was under way", "run it again")
+    assert len((out / "units.jsonl").read_bytes().splitlines()) == 1      # the first batch
+
+
+class Unpicklable(Exception):
+    def __init__(self, a, b):
+        super().__init__(f"{a} and {b}")
+
+
+def fails_for_one(unit: int) -> int:
+    """A unit run in a worker: unit 1 raises an error that cannot be unpickled, unit 2 a
+    refusal."""
+    from ata.core.errors import MissionError
+    if unit == 1:
+        raise Unpicklable("this", "that")
+    if unit == 2:
+        raise MissionError("[mission]", "seed", "a refusal", file="m.toml")
+    return unit * 10
+
+
+def test_any_error_in_a_worker_arrives_named_after_the_units_finished_first():
+    from ata.core.errors import MissionError
+    from ata.runtime.executors import ProcessExecutor, WorkerError
+
+    with ProcessExecutor(1) as ex:
+        got = []
+        with pytest.raises(WorkerError, match="Unpicklable: this and that"):
+            for i, value in ex.run(fails_for_one, [0, 1, 3]):
+                got.append(value)
+        assert got[0] == 0 and set(got) <= {0, 30}   # what finished first is yielded
+        with pytest.raises(MissionError) as caught:
+            list(ex.run(fails_for_one, [2]))
+        assert str(caught.value) == "m.toml: [mission] key 'seed': a refusal"
+        assert sorted(ex.run(fails_for_one, [0, 3])) == [(0, 0), (1, 30)]
+
+
+def test_resuming_seeds_with_a_seed_folder_missing_is_one_line(cli, tmp_path, no_training):
+    seeds = tmp_path / "seeds"
+    (seeds / "seed-0").mkdir(parents=True)
+    (seeds / "seed-0" / "mission.resolved.toml").write_text("", encoding="utf-8")
+    (seeds / "seeds.json").write_text('{"seeds": [0, 1]}', encoding="utf-8")
+    result = cli("train", "--resume", seeds, "-e", "process", "-w", 2)
+    assert_user_error(result, f"{seeds} is a folder of 2 seeds, but seed-1 holds no "
+                              "mission.resolved.toml")

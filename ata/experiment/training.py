@@ -64,7 +64,15 @@ def train(mission: str | None = None, overrides: list[str] | None = None,
             notify("--resume uses the run folder's resolved mission; the MISSION, --plugins, "
                    "--preset, --seeds and --set given are ignored")
         if fd.is_seeds_folder(resume):
-            values = fd.read_seeds(resume)["seeds"]
+            data = fd.read_seeds(resume)
+            values = data["seeds"]
+            missing = [d.name for d in data["dirs"] if not (d / fd.RESOLVED).is_file()]
+            if missing:             # refused before any seed trains on
+                raise MissionError("--resume", None, f"{resume} is a folder of {len(values)} "
+                                   f"seeds, but {', '.join(missing[:3])}"
+                                   f"{' ...' if len(missing) > 3 else ''} holds no "
+                                   f"{fd.RESOLVED}: put the seed's folder back, or train "
+                                   "the seeds again in another folder")
             on_start(resume, values)
             train_seeds(resume, values, executor, workers, address, on_seed)
             return Trained(resume, None, values)

@@ -4,12 +4,14 @@ in any order; the caller puts results back in order, so no executor can change a
 
 from __future__ import annotations
 
+import functools
 import multiprocessing
 import os
+import pickle
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from typing import Any, Callable, Iterator, Sequence
 
-from ata.core.errors import MissionError
+from ata.core.errors import ContractError, MissionError
 
 EXECUTORS = ("serial", "process", "ray")
 
@@ -77,14 +79,17 @@ class ProcessExecutor(Executor):
         finished = False
         manager = None
         try:
-            pending = {pool.submit(fn, unit): i for i, unit in enumerate(units)}
+            plain = functools.partial(_plainly, fn)
+            pending = {pool.submit(plain, pickle.dumps(unit)): i for i, unit in enumerate(units)}
             # the pool's manager thread (started by the first submit); shutdown forgets it
             manager = getattr(pool, "_executor_manager_thread", None)
             while pending:
                 done, _ = wait(pending, return_when=FIRST_COMPLETED)
-                for future in done:
+                # the units that finished first, so that their results are kept (recorded)
+                # when another one failed at the same time
+                for future in sorted(done, key=lambda f: f.exception() is not None):
                     i = pending.pop(future)
-                    yield i, future.result()
+                    yield i, pickle.loads(future.result())
             finished = True
         finally:
             if not finished:
@@ -99,6 +104,33 @@ class ProcessExecutor(Executor):
                 # (CPython 3.11: "Exception ignored ... Bad file descriptor" after a Ctrl-C).
                 # Taken before shutdown, which drops the pool's reference when it does not wait
                 manager.join(timeout=5)
+
+
+class WorkerError(RuntimeError):
+    """An error raised in a worker that cannot cross back as itself (it does not survive
+    pickling): its type and message, the worker's traceback chained below it."""
+
+
+def _plainly(fn: Callable[[Any], Any], data: bytes) -> bytes:
+    """In a worker: `fn` of the unit pickled in `data`, its result pickled. The unit and the
+    result cross as bytes, so that an error in reading either is raised where it is handled
+    (here, or in the caller) and not in the pool's own threads, where any error breaks the
+    whole pool (a unit whose method file changed: a `BrokenProcessPool`). An error crosses
+    back as itself when it survives pickling (a MissionError or ContractError: the same
+    one-line refusal), else as a `WorkerError` naming it."""
+    try:
+        return pickle.dumps(fn(pickle.loads(data)))
+    except Exception as exc:
+        if isinstance(exc, (MissionError, ContractError)) or _crosses(exc):
+            raise
+        raise WorkerError(f"{type(exc).__name__}: {exc}") from exc
+
+
+def _crosses(exc: BaseException) -> bool:
+    try:
+        return type(pickle.loads(pickle.dumps(exc))) is type(exc)
+    except Exception:       # any failure to pickle or unpickle: it would not cross
+        return False
 
 
 def _die_with_parent(parent: int) -> None:
@@ -156,14 +188,21 @@ class RayExecutor(Executor):
     def run(self, fn, units):
         if not units:
             return
-        remote = self.ray.remote(num_cpus=1, max_retries=0)(fn)
-        pending = {remote.remote(unit): i for i, unit in enumerate(units)}
+        remote = self.ray.remote(num_cpus=1, max_retries=0)(_plainly)
+        pending = {remote.remote(fn, pickle.dumps(unit)): i for i, unit in enumerate(units)}
         try:
             while pending:
                 done, _ = self.ray.wait(list(pending), num_returns=1)
                 for ref in done:
                     i = pending.pop(ref)
-                    yield i, self.ray.get(ref)
+                    try:
+                        value = self.ray.get(ref)
+                    except self.ray.exceptions.RayTaskError as exc:
+                        cause = getattr(exc, "cause", None)   # a refusal: the same one line
+                        if isinstance(cause, (MissionError, ContractError)):
+                            raise cause from None
+                        raise
+                    yield i, pickle.loads(value)
         finally:
             for ref in pending:
                 self.ray.cancel(ref, force=True)
