@@ -80,3 +80,18 @@ def test_isolate_on_a_public_seed_says_a_ranking_needs_a_secret_one(cli, tmp_pat
                  "--out", str(tmp_path / "secret"))
     assert secret.exit_code == 0, secret.output
     assert "public seed" not in secret.output
+
+
+@pytest.mark.skipif(sandbox.unavailable() is not None, reason=str(sandbox.unavailable()))
+def test_ata_check_isolate_runs_nothing_of_the_component_outside_the_sandbox(cli, tmp_path):
+    marker = tmp_path / "MARKER"
+    policy = tmp_path / "nearest_capable.py"
+    policy.write_text(f"from pathlib import Path\nPath({str(marker)!r}).write_text('ran')\n"
+                      + (EXAMPLE / "nearest_capable.py").read_text())
+    apart = cli("check", "--component", "policy", f"{policy}:NearestCapable", "--isolate")
+    assert apart.exit_code == 0, apart.output
+    assert "keeps the contract (checked in the sandbox)" in " ".join(apart.output.split())
+    assert not marker.exists()
+    inside = cli("check", "--component", "policy", f"{policy}:NearestCapable")
+    assert inside.exit_code == 0, inside.output
+    assert marker.read_text() == "ran"              # the check above can fail

@@ -143,22 +143,29 @@ def check(mission: str = typer.Argument(
                    "--set mission.KEY=V the small mission's."),
           seed: Optional[int] = typer.Option(None, "--seed", min=0, metavar="N",
                                              help="With --component: the root seed (default: "
-                                                  "drawn anew).")) -> None:
+                                                  "drawn anew)."),
+          isolate: bool = typer.Option(False, "--isolate",
+                                       help="With --component: run the checks in the sandbox, "
+                                            "so that nothing of an untrusted component runs "
+                                            "outside it (see docs/isolation.md).")) -> None:
     """Validate a mission file without running it; or, with --component, check that a
     component keeps the contract (docs/plugins.md, "Checking a component")."""
     from ata.experiment import runner   # on use: start-up time
     from ata.session import load_session   # on use: start-up time
 
     if component is not None:
+        from ata.isolation.check import check_isolated   # on use: start-up time
         from ata.testing import check_reference   # on use: start-up time
+        checker = check_isolated if isolate else check_reference
         try:
-            name = check_reference(component, mission, set_ or [], _split(plugins), seed)
+            name = checker(component, mission, set_ or [], _split(plugins), seed)
         except AssertionError as exc:
             from ata.cli.terminal import err_console   # on use: start-up time
             err_console.print(f"[red]failed[/]: {escape(str(exc))}", highlight=False)
             raise typer.Exit(1) from None
         console.print(f"[green]ok[/]: {component} {escape(name)} ({escape(mission)}) keeps "
-                      "the contract", highlight=False)
+                      "the contract" + (" (checked in the sandbox)" if isolate else ""),
+                      highlight=False)
         return
     session = load_session(mission, set_ or [], _split(plugins))
     m = session.mission
