@@ -203,3 +203,56 @@ def test_resuming_seeds_with_a_seed_folder_missing_is_one_line(cli, tmp_path, no
     result = cli("train", "--resume", seeds, "-e", "process", "-w", 2)
     assert_user_error(result, f"{seeds} is a folder of 2 seeds, but seed-1 holds no "
                               "mission.resolved.toml")
+
+
+# --- 12. optional extras fail soft on any exception -----------------------------------------------
+
+@pytest.fixture
+def broken_extra(tmp_path, monkeypatch):
+    """`broken_extra("tensorboard")`: a package of that name, first on the path, whose import
+    raises a TypeError (as a protobuf mismatch makes TensorBoard's)."""
+    def install(name: str) -> None:
+        folder = tmp_path / "site" / name
+        folder.mkdir(parents=True)
+        (folder / "__init__.py").write_text(
+            'raise TypeError("Descriptors cannot be created directly.\\nIf this call came '
+            'from a _pb2.py file, your generated code is out of date")\n', encoding="utf-8")
+        monkeypatch.syspath_prepend(str(tmp_path / "site"))
+        for module in [m for m in sys.modules if m == name or m.startswith(name + ".")]:
+            monkeypatch.delitem(sys.modules, module)
+    return install
+
+
+def test_a_broken_tensorboard_is_one_warning_and_the_training_goes_on(tmp_path, broken_extra,
+                                                                     capsys):
+    import warnings
+
+    from ata.cli import terminal
+    from ata.runtime.extras import ExtraWarning
+    from ata.training import TrainRun
+    broken_extra("tensorboard")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        run = TrainRun(tmp_path / "run", "", ["phase", "step", "loss"])
+        run.log({"phase": "ita", "step": 1, "loss": "0.5"})
+        run.log({"phase": "ita", "step": 2, "loss": "0.4"})
+        run.save({"step": 2})
+        run.close()
+    assert (tmp_path / "run" / "checkpoint.pt").is_file()
+    assert len((tmp_path / "run" / "log.csv").read_text().splitlines()) == 3
+    assert [w.category for w in caught] == [ExtraWarning]
+    message = str(caught[0].message)
+    assert message == ("tensorboard failed loading it (TypeError: Descriptors cannot be created "
+                       "directly.); going on without it")
+    with warnings.catch_warnings():             # as the CLI shows it: one line
+        terminal.one_line_warnings()
+        warnings.warn(message, ExtraWarning)
+    assert capsys.readouterr().err.splitlines() == [f"warning: {message}"]
+
+
+def test_a_broken_ray_is_one_line(cli, tmp_path, broken_extra):
+    broken_extra("ray")
+    (tmp_path / "m.toml").write_text('[mission]\nname = "m"\nscenarios = 2\n', encoding="utf-8")
+    assert_user_error(cli("run", tmp_path / "m.toml", "-e", "ray", "-o", tmp_path / "o"),
+                      "--executor ray needs ray", "the ray installed fails to load (TypeError: "
+                      "Descriptors cannot be created directly.)", "pip install")

@@ -29,6 +29,7 @@ class _ReflowedHelp(typer.core.TyperGroup):
 app = typer.Typer(add_completion=False, no_args_is_help=True, cls=_ReflowedHelp,
                   help="ATA: adaptive task allocation in multi-human multi-robot teams.")
 terminal.help_without_type_tags()
+terminal.one_line_warnings()
 
 SetOption = typer.Option(None, "--set", "-s", metavar="TABLE.KEY=VALUE",
                          help="Override a mission key, e.g. --set mission.seed=3 (repeatable).")

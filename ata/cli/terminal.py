@@ -64,6 +64,23 @@ def help_without_type_tags() -> None:
                 else self.metavar)
 
 
+def one_line_warnings() -> None:
+    """An optional extra that failed (`ata.runtime.extras.ExtraWarning`) is one ``warning:``
+    line on stderr, not Python's two lines naming our source; other warnings as Python shows
+    them."""
+    import warnings   # on use: start-up time
+
+    from ata.runtime.extras import ExtraWarning   # on use: start-up time
+    shown = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        if issubclass(category, ExtraWarning):
+            warn([str(message)])
+        else:
+            shown(message, category, filename, lineno, file, line)
+    warnings.showwarning = show
+
+
 class LazyConsole:
     """A rich console made at first use in each command, so that it sees the terminal (and
     COLUMNS) of the invocation, not of the import."""
@@ -96,7 +113,8 @@ def note(text: str) -> None:
 
 def warn(warnings: list[str]) -> None:
     for warning in warnings:
-        err_console.print(f"[yellow]warning:[/] {escape(warning)}", highlight=False)
+        err_console.print(f"[yellow]warning:[/] {escape(warning)}", highlight=False,
+                          soft_wrap=True)
 
 
 class SpeedColumn(ProgressColumn):

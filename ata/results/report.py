@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from ata.core.errors import MissionError
+from ata.runtime import extras
 from ata.runtime.folders import prepare_out_dir, writing
 from ata.results.rows import (BOOTSTRAP_SEED, RESAMPLES, Results, beat_probability,
                                     bootstrap_ci, nanmean, paired_values, read_results)
@@ -239,11 +240,11 @@ def figure_caption(stem: str, report: Report, paired: list[Paired] = ()) -> str:
 
 def pyplot():
     """matplotlib's pyplot on the Agg backend; a MissionError naming the fix without it."""
-    try:
+    def load() -> Any:
         import matplotlib   # on use: matplotlib's start-up time
-    except ImportError:
-        raise MissionError("", None, "the figures need matplotlib: pip install 'ata[plot]' "
-                           "(or use --no-figures)") from None
+        return matplotlib
+    matplotlib = extras.required("plot", load, "the figures need matplotlib (or use "
+                                 "--no-figures)")
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt   # on use: matplotlib's start-up time
     return plt

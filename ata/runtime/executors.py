@@ -12,6 +12,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from typing import Any, Callable, Iterator, Sequence
 
 from ata.core.errors import ContractError, MissionError
+from ata.runtime import extras
 
 EXECUTORS = ("serial", "process", "ray")
 
@@ -161,11 +162,10 @@ class RayExecutor(Executor):
     parallel = True
 
     def __init__(self, address: str | None = None, workers: int | None = None):
-        try:
+        def load() -> Any:
             import ray   # the optional extra ata[ray]
-        except ImportError:
-            raise MissionError("--executor", None, "ray is not installed; install it with: "
-                               "pip install 'ata[ray]'") from None
+            return ray
+        ray = extras.required("ray", load, "--executor ray needs ray, which is not installed")
         self.ray = ray
         self.address = address or os.environ.get("RAY_ADDRESS") or None
         self.workers = workers

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ata.core.errors import MissionError
+from ata.runtime import extras
 from ata.training.checkpoints import of_kind, read_checkpoint
 
 
@@ -127,33 +128,55 @@ class TrainRun:
         writer = self._tensorboard_writer()
         if writer is None:
             return
-        for key, value in row.items():
-            if key in ("phase", "step") or value in ("", None):
-                continue
-            try:
-                number = float(value)
-            except (TypeError, ValueError):
-                continue                                   # a text column, such as setting
-            writer.add_scalar(key, number, int(x))
-        writer.flush()
+        try:
+            for key, value in row.items():
+                if key in ("phase", "step") or value in ("", None):
+                    continue
+                try:
+                    number = float(value)
+                except (TypeError, ValueError):
+                    continue                               # a text column, such as setting
+                writer.add_scalar(key, number, int(x))
+            writer.flush()
+        except Exception as exc:        # an optional extra: the training goes on without it
+            self._without_tensorboard(exc, "writing its event file")
 
     def _tensorboard_writer(self) -> Any:
         if not self.tensorboard or self.tensorboard_missing:
             return None
         if self._writer is None:
-            try:
+            def load() -> Any:
                 import tensorboard  # noqa: F401  (torch's writer needs the package)
                 from torch.utils.tensorboard import SummaryWriter  # the simulator needs no torch
-            except ImportError:
+                return SummaryWriter
+            writer = extras.optional("tensorboard", load)
+            if writer is None:
                 self.tensorboard_missing = True
                 return None
-            self._writer = SummaryWriter(str(self.dir), purge_step=self._purge)
+            try:
+                self._writer = writer(str(self.dir), purge_step=self._purge)
+            except Exception as exc:
+                self._without_tensorboard(exc, "opening its event file")
         return self._writer
+
+    def _without_tensorboard(self, exc: Exception, doing: str) -> None:
+        """TensorBoard failed: one warning, and no more scalars (log.csv holds them all)."""
+        extras.without("tensorboard", exc, doing)
+        self.tensorboard_missing = True
+        writer, self._writer = self._writer, None
+        if writer is not None:
+            try:
+                writer.close()
+            except Exception:           # already reported; its event file is left as it is
+                pass
 
     def close(self) -> None:
         """Close the TensorBoard event file (if one was written)."""
         if self._writer is not None:
-            self._writer.close()
+            try:
+                self._writer.close()
+            except Exception as exc:    # an optional extra: the run is saved without it
+                extras.without("tensorboard", exc, "closing its event file")
             self._writer = None
 
     def tell(self, row: dict[str, Any]) -> None:

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ata.core.errors import MissionError
+from ata.runtime import extras
 from ata.results.report import save_figure
 from ata.model import tables
 from ata.viz.record import OUTCOMES, RIGHT, UNCLASSIFIED, UNVISITED, WRONG, Episode
@@ -31,12 +31,10 @@ STEMS = ("show_map", "show_timeline", "show_humans")
 
 def figure_class() -> Any:
     """matplotlib's Figure (no pyplot, no global backend), or one clear message without it."""
-    try:
+    def load() -> Any:
         from matplotlib.figure import Figure   # on use: matplotlib's start-up time
-    except ImportError:
-        raise MissionError("", None, "the pictures need matplotlib: pip install "
-                           "'ata[plot]'") from None
-    return Figure
+        return Figure
+    return extras.required("plot", load, "the pictures need matplotlib")
 
 
 def robot_colour(robot: int) -> str:
