@@ -48,6 +48,9 @@ def run(mission: Optional[str] = typer.Argument(
     The run is a plan of one job on the chunked runner of `ata eval`. Each finished batch is
     saved in the run folder as it ends: rerun the same command with the same --out to go on
     after an interruption (only what is missing runs)."""
+    from ata.runtime import bytecode   # on use: start-up time
+    if isolate:
+        bytecode.guard()       # before the modules that run the world are loaded
     from ata.experiment import runner   # on use: start-up time
     from ata.isolation import require_sandbox   # on use: start-up time
     from ata.session import IN_PROCESS   # on use: start-up time
@@ -108,6 +111,9 @@ def eval_(paths: List[str] = typer.Argument(
 
     Each finished work unit is saved in the output folder as it ends: rerun the same command
     with the same --out to go on after an interruption (only what is missing runs)."""
+    from ata.runtime import bytecode   # on use: start-up time
+    if isolate:
+        bytecode.guard()       # before the modules that run the world are loaded
     from ata.experiment import evaluate as ev   # on use: start-up time
     from ata.isolation import require_sandbox   # on use: start-up time
     from ata.results import report as rep   # on use: start-up time

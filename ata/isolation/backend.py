@@ -17,7 +17,7 @@ from ata.isolation.process import (DEFAULT_DECISION_TIMEOUT, Isolation, close_id
                                    prober, resolver)
 from ata.isolation.proxies import isolated_simulation
 from ata.isolation.remote import isolated_registry, worker_registry
-from ata.runtime import sandbox
+from ata.runtime import bytecode, sandbox
 
 
 @dataclass(frozen=True)
@@ -71,6 +71,7 @@ def require_sandbox(timeout_s: float = DEFAULT_DECISION_TIMEOUT) -> Isolated:
     its start overlaps the loading and checking of the mission."""
     if not timeout_s > 0:
         raise MissionError("--decision-timeout", None, "must be a positive number of seconds")
+    bytecode.guard()
     reason = sandbox.unavailable()
     if reason is not None:
         raise MissionError("--isolate", None, reason)
