@@ -256,3 +256,56 @@ def test_a_broken_ray_is_one_line(cli, tmp_path, broken_extra):
     assert_user_error(cli("run", tmp_path / "m.toml", "-e", "ray", "-o", tmp_path / "o"),
                       "--executor ray needs ray", "the ray installed fails to load (TypeError: "
                       "Descriptors cannot be created directly.)", "pip install")
+
+
+# --- 13. the small ones ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("text, message", [
+    ("[1, 2]", "manifest.json: the manifest of published rows is not a JSON object but a list"),
+    ("nope", "manifest.json: the manifest of published rows is not JSON"),
+])
+def test_a_manifest_that_is_not_a_json_object_is_one_line(cli, evaluated, tmp_path, text,
+                                                          message):
+    assert cli("publish", evaluated, "-o", tmp_path / "pub").exit_code == 0
+    (tmp_path / "pub" / "manifest.json").write_text(text, encoding="utf-8")
+    assert_user_error(cli("compare", evaluated, f"published:{tmp_path / 'pub'}"), message)
+
+
+def test_missing_pinned_digests_say_to_reinstall(tmp_path, monkeypatch):
+    from ata.core.errors import MissionError
+    from ata.runtime import inputs
+    monkeypatch.setattr(inputs, "PINNED", tmp_path / "digests.json")
+    shipped = next(inputs.WEIGHTS.glob("*.pt"))
+    with pytest.raises(MissionError, match="cannot read the pinned digests of ata's shipped "
+                                           "checkpoints: No such file or directory: reinstall"):
+        inputs.shipped_mismatch(shipped)
+
+
+def test_an_infinite_decision_timeout_is_refused(cli, tmp_path):
+    result = cli("run", "--isolate", "--decision-timeout", "inf", "-o", tmp_path / "o")
+    assert result.exit_code == 2 and "Traceback" not in result.output
+    assert "--decision-timeout" in result.output and "86400" in result.output
+
+
+def test_no_width_still_prints(tmp_path):
+    from typer.testing import CliRunner
+
+    from ata.cli import app
+    runner = CliRunner(env={"COLUMNS": "0"})
+    result = runner.invoke(app, ["run", str(tmp_path / "missing.toml")])
+    assert result.exit_code == 2
+    assert flat(result.output) == f"error: {tmp_path / 'missing.toml'}: no such file"
+
+
+@pytest.mark.parametrize("env", [{"LC_ALL": "C", "LANG": "C", "PYTHONUTF8": "0"},
+                                 {"PYTHONIOENCODING": "ascii"}])
+def test_an_ascii_terminal_gets_its_table_of_a_non_ascii_name(tmp_path, env):
+    mission = tmp_path / "x.toml"
+    mission.write_text('[mission]\nname = "café — x"\nscenarios = 1\n', encoding="utf-8")
+    base = {k: v for k, v in os.environ.items()
+            if k not in ("LC_ALL", "LANG", "PYTHONIOENCODING", "PYTHONUTF8")}
+    done = subprocess.run([sys.executable, "-m", "ata.cli", "run", str(mission), "-q", "-o",
+                           str(tmp_path / "o")], capture_output=True,
+                          env={**base, "COLUMNS": "100", **env})
+    assert done.returncode == 0, done.stderr
+    assert b"results: " in done.stdout and b"Traceback" not in done.stderr

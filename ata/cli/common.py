@@ -48,9 +48,10 @@ IsolateOption = typer.Option(False, "--isolate",
                              help="Run the decision components (untrusted methods) in a "
                                   "sandboxed process apart from the world (bubblewrap; pip "
                                   "install 'ata[sandbox]'); see docs/isolation.md.")
-TimeoutOption = typer.Option(60.0, "--decision-timeout", min=0.001, metavar="SECONDS",
+TimeoutOption = typer.Option(60.0, "--decision-timeout", min=0.001, max=86400.0,
+                             metavar="SECONDS",
                              help="With --isolate: the time limit of one decision call of a "
-                                  "batch (default 60).")
+                                  "batch (default 60, at most a day).")
 
 
 def user_errors(func: Callable) -> Callable:

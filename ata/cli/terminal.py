@@ -4,6 +4,7 @@ run` and `ata eval`, tables with every value whole at any width (`tables.layout`
 from __future__ import annotations
 
 import contextlib
+import sys
 from typing import Any, Iterator
 
 import re
@@ -81,15 +82,37 @@ def one_line_warnings() -> None:
     warnings.showwarning = show
 
 
+MIN_WIDTH = 40
+"""The narrowest console drawn: a smaller width (COLUMNS=0) would print nothing at all; the
+terminal wraps what is wider."""
+
+
 class LazyConsole:
     """A rich console made at first use in each command, so that it sees the terminal (and
-    COLUMNS) of the invocation, not of the import."""
+    COLUMNS) of the invocation, not of the import. Output degrades but never vanishes: at
+    least `MIN_WIDTH` columns, and a character the stream's encoding lacks (an ASCII locale,
+    PYTHONIOENCODING=ascii) is replaced instead of ending the command."""
 
     def __init__(self, **kwargs):
         self.kwargs = kwargs
 
     def __getattr__(self, name):
-        return getattr(Console(**self.kwargs), name)
+        return getattr(self._console(), name)
+
+    def _console(self) -> Console:
+        stream = sys.stderr if self.kwargs.get("stderr") else sys.stdout
+        # an ASCII locale's stdout is 'surrogateescape', which fails on 'é' as 'strict' does
+        if getattr(stream, "errors", None) in ("strict", "surrogateescape") \
+                and hasattr(stream, "reconfigure") \
+                and "utf" not in str(getattr(stream, "encoding", "") or "").lower():
+            try:
+                stream.reconfigure(errors="replace")
+            except (OSError, ValueError):     # a stream that cannot be reconfigured now
+                pass
+        console = Console(**self.kwargs)
+        if console.width < MIN_WIDTH:
+            console = Console(**self.kwargs, width=MIN_WIDTH)
+        return console
 
 
 console = LazyConsole()

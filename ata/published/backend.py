@@ -14,6 +14,7 @@ from ata.backend import IN_PROCESS, OnEpoch, Part
 from ata.core.errors import MissionError
 from ata.core.mission import Mission, parse_override
 from ata.core.registry import Register
+from ata.runtime.inputs import read_json_object
 from ata.published.sets import (DEFAULT, MANIFEST, PREFIX, PUBLISHED, Results, cell_name,
                                 read_published, world_digest)
 from ata.session import Session, load_session
@@ -162,7 +163,7 @@ def published_method(spec: str, base: Path, where: str, path: str) -> PublishedR
                            f"{', '.join(shipped) or '(none in this version yet)'}; or "
                            "published:FOLDER:METHOD, a folder that `ata publish` wrote",
                            file=path)
-    manifest = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))
+    manifest = read_json_object(folder / MANIFEST, "the manifest of published rows")
     if method not in manifest.get("methods", {}):
         raise MissionError(where, "mission", f"{spec!r}: the published rows in {folder} hold "
                            f"no method {method!r}; they hold: "

@@ -42,6 +42,7 @@ from ata.core.errors import MissionError
 from ata.core.mission import loads_toml
 from ata.results.rows import Results, read_results
 from ata.runtime.folders import replace_folder, safe_name
+from ata.runtime.inputs import read_json_object
 from ata.session import inputs_of, load_session
 
 PUBLISHED = Path(__file__).resolve().parent
@@ -223,7 +224,7 @@ def publish(eval_dir: str | Path, out: str | Path) -> Path:
 def read_published(spec: str | Path) -> tuple[Results, dict[str, Any], Path]:
     """(the rows, the manifest, the folder) of a set of published rows."""
     folder = locate(spec)
-    manifest = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))
+    manifest = read_json_object(folder / MANIFEST, "the manifest of published rows")
     data = (folder / ROWS).read_bytes()
     if manifest.get("rows_sha256") not in (None, hashlib.sha256(data).hexdigest()):
         raise MissionError("", None, f"{ROWS} is not the file its manifest describes (another "

@@ -16,6 +16,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from ata.core.errors import MissionError
 from ata.core.mission import TEAM_SETTINGS
 
 WEIGHTS = Path(__file__).resolve().parents[1] / "weights"
@@ -56,9 +57,29 @@ def _sha256(path: Path) -> str:
     return _DIGESTS[key]
 
 
+def read_json_object(path: str | Path, what: str) -> dict[str, Any]:
+    """The JSON object in the file at `path` (`what` it is, for the message); a file missing,
+    unreadable, not JSON or not an object is one MissionError naming it."""
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise MissionError("", None, f"cannot read {what}: {exc.strerror or exc}",
+                           file=str(path)) from None
+    except ValueError as exc:           # not JSON, or not UTF-8
+        raise MissionError("", None, f"{what} is not JSON ({exc})", file=str(path)) from None
+    if not isinstance(data, dict):
+        raise MissionError("", None, f"{what} is not a JSON object but a "
+                           f"{type(data).__name__}", file=str(path))
+    return data
+
+
 def pinned() -> dict[str, str]:
-    """The pinned digests of the shipped checkpoints (`PINNED`)."""
-    return json.loads(PINNED.read_text(encoding="utf-8"))
+    """The pinned digests of the shipped checkpoints (`PINNED`); a missing or broken file is a
+    MissionError saying to reinstall."""
+    try:
+        return read_json_object(PINNED, "the pinned digests of ata's shipped checkpoints")
+    except MissionError as exc:
+        raise MissionError("", None, f"{exc}: reinstall ata") from None
 
 
 def shipped_mismatch(path: str | Path) -> str | None:
