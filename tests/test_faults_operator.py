@@ -309,3 +309,13 @@ def test_an_ascii_terminal_gets_its_table_of_a_non_ascii_name(tmp_path, env):
                           env={**base, "COLUMNS": "100", **env})
     assert done.returncode == 0, done.stderr
     assert b"results: " in done.stdout and b"Traceback" not in done.stderr
+
+
+def test_sys_exit_at_import_in_a_method_file_is_one_line(cli, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "ex.py").write_text("import sys\nsys.exit(3)\n", encoding="utf-8")
+    (tmp_path / "ex.toml").write_text('[mission]\nname = "x"\nscenarios = 1\n[components]\n'
+                                      'initial = "./ex.py:X"\n', encoding="utf-8")
+    for args in (("run", "ex.toml", "-q", "-o", "o"), ("check", "--component", "policy",
+                                                        "./ex.py:X")):
+        assert_user_error(cli(*args), "error: code the command loaded called sys.exit(3)")

@@ -76,6 +76,15 @@ def user_errors(func: Callable) -> Callable:
         except Interrupted as exc:
             note(str(exc))
             raise typer.Exit(130) from None
+        except SystemExit as exc:
+            # ata itself ends a command with typer.Exit: a SystemExit comes from code the
+            # command loaded (a method file calling sys.exit at import), which would otherwise
+            # end it silently with the status it chose
+            err_console.print(f"[bold red]error:[/] code the command loaded called sys.exit("
+                              f"{escape(repr(exc.code))}) (a plugin, or a file a mission "
+                              "names): a component must raise an exception instead",
+                              highlight=False, soft_wrap=True)
+            raise typer.Exit(2) from None
 
     return wrapper
 
