@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import multiprocessing
 import os
-import pickle
 import random
 import secrets
 import sys
@@ -49,6 +48,7 @@ from ata.core.kernel import DECISION_KINDS, Simulation, is_reference
 from ata.core.mission import SLOTS, ComponentSlots, Mission, parse_override, validate
 from ata.core.registry import KINDS, collect_components, get_plugin_manager
 from ata.core.state import Allocation, DecisionContext
+from ata.runtime import fingerprint
 
 LIST_SLOT_BASE = {"perturbations": ComponentSlots().perturbations,
                   "injectors": ComponentSlots().injectors, "reconstructors": []}
@@ -75,8 +75,11 @@ past the earliest onset of fatigue (0.5 h at the default spread) when the episod
 
 def _mission(kind: str, name: str, factory: Callable[..., Any], settings: dict | None,
              mission_keys: dict | None, seed: int = 0) -> tuple[Mission, Any]:
-    pm = get_plugin_manager(extra=[_contributor(kind, name, factory)], entry_points=False)
-    registry = collect_components(pm)
+    registry = collect_components(get_plugin_manager(entry_points=False))
+    known = registry.components.get((kind, name))
+    if known is None or known.factory is not factory:   # a registered one is there already
+        registry = collect_components(get_plugin_manager(
+            extra=[_contributor(kind, name, factory)], entry_points=False))
     slot = SLOT_OF_KIND[kind]
     raw: dict[str, Any] = {"mission": {"setting": "custom", "humans": 3, "robots": 4,
                                        "tasks": 12, "scenarios": 6, "batch_size": 6,
@@ -161,6 +164,7 @@ def _run(mission: Mission, registry: Any, ids: list[int], redraw: tuple[str, ...
     """One run of the check mission. With `redraw`, those world streams draw other numbers
     (under `salt`), and the run stops as soon as what every scenario observes differs from
     `base` (or at once, marked, when I differs): no decision after that is compared."""
+    shared = fingerprint.state()
     sim = Simulation(mission, registry, ids)
     world = sim.sim.rng.resalted(redraw, salt) if redraw else sim.sim.rng
     world.drawn = set()
@@ -187,6 +191,10 @@ def _run(mission: Mission, registry: Any, ids: list[int], redraw: tuple[str, ...
     if sim.sim.epoch == sim.sim.clock.n_epochs:
         trace.r_perf = sim.end_episode().r_perf.copy()
     trace.drawn = tuple(sorted(world.drawn))
+    edited = fingerprint.changed(shared, fingerprint.state())
+    assert not edited, (f"the run changed what every component reads: {', '.join(edited[:5])} "
+                        "(module state of ata.core or ata.model: copy a table before changing "
+                        "it)")
     return trace
 
 
@@ -362,6 +370,11 @@ def check_component(kind: str, factory: Callable[..., Any], *, name: str = "unde
     seed = secrets.randbelow(2**31) if seed is None else int(seed)
     salt = 1 + secrets.randbelow(2**62)
     m, registry = _mission(kind, name, factory, settings, mission, seed)
+    patched = fingerprint.against_sources()
+    if patched:
+        raise AssertionError(f"{kind} {name!r}: {', '.join(patched[:5])} of ata.core or "
+                             "ata.model is not what ata's sources make (changed by the "
+                             "component's code, or by other code loaded with it)")
     ids = list(range(m.settings.scenarios))
     try:
         try:
