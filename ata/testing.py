@@ -387,6 +387,12 @@ def check_component(kind: str, factory: Callable[..., Any], *, name: str = "unde
                 _integrity(kind, name, base, m, registry, ids, salt)
         except ContractError as exc:   # the kernel's contract checks
             raise AssertionError(f"{kind} {name!r} broke the kernel's contract: {exc}") from exc
+        except (AssertionError, MissionError):
+            raise
+        except Exception as exc:       # noqa: BLE001 - the component's own error, in a line
+            text = " ".join(str(exc).split())[:2000]
+            raise AssertionError(f"{kind} {name!r} raised {type(exc).__name__}: "
+                                 f"{text}") from exc
         _same_runs(base, again, alone, ids)
     except AssertionError as exc:
         raise AssertionError(f"{exc} [check_component(..., seed={seed})]") from exc.__cause__

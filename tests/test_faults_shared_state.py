@@ -52,3 +52,17 @@ def test_an_edited_table_before_the_check_fails_it(monkeypatch):
 
 def test_an_honest_component_passes():
     check_component("policy", PlainGreedy, name="plain_greedy", seed=3)
+
+
+def test_a_component_that_raises_fails_its_check_in_one_line(cli, tmp_path):
+    policy = tmp_path / "raising.py"
+    policy.write_text("from ata import hookimpl\n"
+                      "from ata.plugins.policies.greedy import GreedyPolicy\n\n\n"
+                      "class Raising(GreedyPolicy):\n    name = 'raising'\n\n"
+                      "    @hookimpl\n    def ata_initial_allocation(self, ctx):\n"
+                      "        raise ValueError('my bug')\n")
+    result = cli("check", "--component", "policy", f"{policy}:Raising")
+    assert result.exit_code == 1
+    text = " ".join(result.output.split())
+    assert "failed: policy 'raising' raised ValueError: my bug" in text
+    assert "Traceback" not in result.output
