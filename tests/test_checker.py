@@ -194,8 +194,9 @@ class PeeksThroughTheOldContext:
 
 
 def test_a_policy_reading_the_seed_from_its_context_fails_with_a_clear_message():
-    with pytest.raises(AttributeError, match="DecisionContext has no field 'params': the "
-                                             "decision context carries no mission"):
+    with pytest.raises(AssertionError, match="raised AttributeError: DecisionContext has no "
+                                             "field 'params': the decision context carries no "
+                                             "mission"):
         check_component("policy", PeeksThroughTheOldContext)
 
 
