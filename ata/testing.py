@@ -73,6 +73,14 @@ CHECK_HUMANS = {"t0_max_h": 0.5}
 past the earliest onset of fatigue (0.5 h at the default spread) when the episode starts."""
 
 
+def check_team(seed: int) -> dict[str, Any]:
+    """The check mission's team and horizon, drawn from its seed (2 to 4 humans, 3 to 5 robots,
+    9 to 15 POIs, 10 to 12 minutes), so that a component cannot tell a check by its shape."""
+    draw = random.Random(seed ^ 0x5EED)
+    return {"setting": "custom", "humans": draw.randint(2, 4), "robots": draw.randint(3, 5),
+            "tasks": draw.randint(9, 15), "horizon_s": float(draw.choice((600, 660, 720)))}
+
+
 def _mission(kind: str, name: str, factory: Callable[..., Any], settings: dict | None,
              mission_keys: dict | None, seed: int = 0) -> tuple[Mission, Any]:
     registry = collect_components(get_plugin_manager(entry_points=False))
@@ -81,10 +89,9 @@ def _mission(kind: str, name: str, factory: Callable[..., Any], settings: dict |
         registry = collect_components(get_plugin_manager(
             extra=[_contributor(kind, name, factory)], entry_points=False))
     slot = SLOT_OF_KIND[kind]
-    raw: dict[str, Any] = {"mission": {"setting": "custom", "humans": 3, "robots": 4,
-                                       "tasks": 12, "scenarios": 6, "batch_size": 6,
-                                       "horizon_s": 600.0, "uncertainty": "high",
-                                       "seed": seed, **(mission_keys or {})},
+    raw: dict[str, Any] = {"mission": {**check_team(seed), "scenarios": 6, "batch_size": 6,
+                                       "uncertainty": "high", "seed": seed,
+                                       **(mission_keys or {})},
                            "components": {}}
     if slot in LIST_SLOT_BASE:
         raw["components"][slot] = LIST_SLOT_BASE[slot] + [name]

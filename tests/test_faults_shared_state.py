@@ -66,3 +66,10 @@ def test_a_component_that_raises_fails_its_check_in_one_line(cli, tmp_path):
     text = " ".join(result.output.split())
     assert "failed: policy 'raising' raised ValueError: my bug" in text
     assert "Traceback" not in result.output
+
+
+def test_the_check_mission_has_no_fixed_shape():
+    from ata.testing import check_team
+    shapes = {tuple(check_team(seed).values()) for seed in range(40)}
+    assert len(shapes) > 20
+    assert {s[1] for s in shapes} == {2, 3, 4} and len({s[3] for s in shapes}) > 4
