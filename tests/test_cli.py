@@ -59,8 +59,8 @@ def test_run_tiny_mission_writes_the_run_folder(cli, tiny, tmp_path):
     assert "scenarios 3 (ids 0..2, root seed 0)" in text
     assert f"results: {out}" in text
     assert sorted(p.name for p in out.iterdir()) == [
-        "mission.resolved.toml", "plan.json", "plugins.toml", "results.csv", "summary.json",
-        "units.jsonl"]
+        "mission.resolved.toml", "plan.json", "plugins.toml", "provenance.json", "results.csv",
+        "summary.json", "units.jsonl"]
 
     rows = read_rows(out / "results.csv")
     assert [int(r["scenario"]) for r in rows] == [0, 1, 2]

@@ -51,6 +51,7 @@ def report(run_dir: List[Path] = typer.Argument(
     from ata.results import report as rep   # on use: start-up time
     from ata.results import training_report   # on use: start-up time
     from ata.results.rows import check_column, read_results   # on use: start-up time
+    from ata.runtime.machine import provenance_text   # on use: start-up time
 
     if any(training_report.is_training_folder(d) for d in run_dir):
         if len(run_dir) > 1:
@@ -74,6 +75,10 @@ def report(run_dir: List[Path] = typer.Argument(
         if result.results.replaced:
             note("cells taken from a later folder: " + rep.replaced_text(result.results))
         terminal.report_tables(result)
+        for folder in run_dir:
+            made = provenance_text(folder)
+            if made is not None:
+                console.print(f"made with: {escape(made)}", highlight=False)
     console.print("wrote " + ", ".join(escape(str(p)) for p in written), highlight=False)
 
 

@@ -37,7 +37,7 @@ from ata.published import check_models
 from ata.runtime.executors import EXECUTORS, Executor
 from ata.runtime.folders import safe_name, stamped_folder
 from ata.runtime.heldout import EVAL_FIRST_SCENARIO
-from ata.runtime.machine import machine
+from ata.runtime.machine import machine, write_provenance
 from ata.session import Session, load_session
 
 DEFAULT_SCENARIOS = 500
@@ -364,7 +364,7 @@ def _rows(job: Job, part: dict[str, Any]) -> list[dict[str, Any]]:
 # -- the run folder -----------------------------------------------------------------------------
 def write_eval(out_dir: str | Path, suites: list[Suite], jobs: list[Job], result: EvalResult,
                arguments: dict[str, Any]) -> Path:
-    """results.csv, missions/*.resolved.toml, plugins.toml and eval.json."""
+    """results.csv, missions/*.resolved.toml, plugins.toml, provenance.json and eval.json."""
     out = Path(out_dir)
     (out / "missions").mkdir(parents=True, exist_ok=True)
     for stale in (out / "missions").glob("*.resolved.toml"):   # of an earlier plan
@@ -396,6 +396,7 @@ def write_eval(out_dir: str | Path, suites: list[Suite], jobs: list[Job], result
                       "mission": j.mission.source} for j in jobs],
             "rows": len(result.rows), "wall_s": result.wall_s, "machine": machine(),
             "method_wall_s": result.method_wall_s, "warnings": result.warnings}
+    write_provenance(out)
     (out / "eval.json").write_text(json.dumps(meta, indent=2, default=_json_default) + "\n",
                                    encoding="utf-8")
     return out

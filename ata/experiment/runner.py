@@ -25,6 +25,7 @@ from ata.runtime import memory
 from ata.runtime.executors import Executor, ProcessExecutor, SerialExecutor
 from ata.runtime.folders import stamped_folder
 from ata.runtime.inputs import shipped_setting
+from ata.runtime.machine import write_provenance
 from ata.session import Session, load_session
 
 
@@ -225,7 +226,8 @@ def weights_rows(session: Session) -> list[tuple[str, str]]:
 
 
 def write_run(out_dir: str | Path, session: Session, result: RunResult) -> Path:
-    """Write results.csv, summary.json, the resolved mission and the plugin versions."""
+    """Write results.csv, summary.json, the resolved mission, the plugin versions and the
+    provenance (`ata.runtime.machine.provenance`)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rows = result.rows()
@@ -235,6 +237,7 @@ def write_run(out_dir: str | Path, session: Session, result: RunResult) -> Path:
     versions = {"ata": __version__, "components": session.versions(),
                 "inputs": session.inputs(), "code": session.code()}
     (out / "plugins.toml").write_text(tomli_w.dumps(versions), encoding="utf-8")
+    write_provenance(out)
     return out
 
 
