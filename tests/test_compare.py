@@ -363,3 +363,12 @@ def test_eval_shows_every_value_at_80_columns(tmp_path, monkeypatch):
     report = rep.summarize(read_results(tmp_path / "out"))
     assert_whole_at_80(output, [v for row in rep.table_rows(report, "a", "high", True)[1]
                                 for v in row])
+
+
+def test_compare_of_a_folder_of_one_method_says_what_to_give(cli, tmp_path):
+    out = tmp_path / "one"
+    assert cli("run", "builtin:greedy", "-n", "2", "--set", "mission.horizon_s=600", "-q",
+               "-o", str(out)).exit_code == 0
+    result = cli("compare", str(out))
+    assert result.exit_code == 2
+    assert "this folder holds one method: give a second folder" in " ".join(result.output.split())

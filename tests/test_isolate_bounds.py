@@ -74,7 +74,10 @@ def test_isolate_on_a_public_seed_says_a_ranking_needs_a_secret_one(cli, tmp_pat
             "mission.horizon_s=600", "--isolate"]
     public = cli(*base, "--out", str(tmp_path / "public"))
     assert public.exit_code == 0, public.output
-    assert "--isolate on the public seed 0" in " ".join(public.output.split())
+    text = " ".join(public.output.split())
+    assert "--isolate on the public seed 0" in text
+    assert "isolated: the decisions run in a sandboxed process" in text
+    assert "decisions isolated (--isolate)" in text
     monkeypatch.setenv("ATA_TEST_BOUNDS_SEED", str(2**40 + 12345))
     secret = cli(*base, "--set", "mission.seed='env:ATA_TEST_BOUNDS_SEED'",
                  "--out", str(tmp_path / "secret"))

@@ -200,6 +200,8 @@ def summary_rows(session: Session, result: RunResult) -> list[tuple[str, str]]:
             ("scenarios", f"{s['scenarios']} (ids {first}..{first + s['scenarios'] - 1}, root "
                           f"seed {m.seed_label})"),
             *weights_rows(session),
+            *([("decisions", f"{session.backend.label} (--isolate)")]
+              if session.backend.key() else []),
             ("team performance", f"{s['score_mean']:.1f}{ci}"),
             ("fraction of U", f"{s['fraction_of_u']:.3f} (U: the capacity-free bound)"),
             ("POIs classified", f"{100 * s.get('classified_share_mean', float('nan')):.1f}%"),

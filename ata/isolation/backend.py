@@ -51,9 +51,11 @@ class Isolated(Isolation):
             return batch_part(ids, sim.run(on_epoch=on_epoch))
 
     def notes(self, mission: Mission) -> list[str]:
+        on = (f"isolated: the decisions run in a sandboxed process (a decision time limit of "
+              f"{self.decision_timeout_s:g} s)")
         if mission.secret_seed:
-            return []
-        return [f"--isolate on the public seed {mission.seed_label}: a method can recognise "
+            return [on]
+        return [on, f"--isolate on the public seed {mission.seed_label}: a method can recognise "
                 "the scenarios of a seed it can guess; a ranking of untrusted methods needs a "
                 "secret one (seed = 'env:NAME'; docs/isolation.md)"]
 

@@ -266,6 +266,10 @@ def compare(a: Results, b: Results | None, columns: list[str], *, base: str | No
     found = pairings(a, b, base, methods)
     items = list(pairs(a, b, found))
     if not items:
+        if b is None and len({m for m, _, _ in a.cells()}) == 1:
+            raise MissionError("", None, "this folder holds one method: give a second folder "
+                               "to pair it with (ata compare RUN OTHER_RUN), or pair it with "
+                               "the published rows (ata compare RUN published)")
         raise MissionError("", None, "no paired scenarios: the folders share no (seed, "
                            "scenario id) of a pair of methods at the same setting and level")
     if b is None:
