@@ -4,13 +4,44 @@ bit. Each function takes the `Decoder` in place of ``self``."""
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ata.model import greedy_score, tables
 from ata.model.tables import MAX_POINTS
 from ata.plugins.ata_hrl.decoder import SHORTLIST
 from ata.plugins.ata_hrl.inputs import (CLS_FEATURES, NAV_FEATURES, POI_FEATURES,
-                                        ROBOT_FEATURES, StepInputs, _fill, _quiet)
+                                        ROBOT_FEATURES, StepInputs)
+
+
+def _quiet(method):
+    """Numpy's warnings off: episodes whose decoding is over carry dummy choices (inf - inf)."""
+
+    @functools.wraps(method)
+    def wrapper(*args, **kwargs):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return method(*args, **kwargs)
+
+    return wrapper
+
+
+def _fill(out: np.ndarray, parts: list) -> np.ndarray:
+    """Write `parts` side by side along `out`'s last axis and return `out` (float32): each part
+    a column (broadcast to ``out.shape[:-1]``) or a block of columns (``out.ndim`` dimensions),
+    cast as ``astype`` casts: the features np.stack and astype would give, without their
+    intermediate arrays (the decoder builds four such arrays at each of a decode's steps)."""
+    i = 0
+    for part in parts:
+        if np.ndim(part) == out.ndim:
+            w = part.shape[-1]
+            out[..., i:i + w] = part
+            i += w
+        else:
+            out[..., i] = part
+            i += 1
+    assert i == out.shape[-1]
+    return out
 
 
 def _legs_to(dec, e: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

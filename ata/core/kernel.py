@@ -100,7 +100,7 @@ class Simulation:
         self.decision_rng = decision_rng(mission.settings.seed, np.asarray(scenario_ids))
         """The decision-makers' generator: streams of their own, never the world's."""
         self.sim = SimState(sizes=mission.sizes, clock=mission.clock, rng=rng,
-                            params={"mission": mission}, trace=trace)
+                            trace=trace)
         self.pm = pluggy.PluginManager("ata")
         self.pm.add_hookspecs(hookspecs)
         overrides = overrides or {}

@@ -480,7 +480,3 @@ def _check_clock(s: MissionSettings) -> None:
     if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
         raise MissionError("[mission]", "horizon_s", f"{s.horizon_s} is not a whole number "
                            f"of epochs of {s.epoch_s} s")
-
-
-def write_toml(data: dict[str, Any], path: str | Path) -> None:
-    Path(path).write_text(tomli_w.dumps(data), encoding="utf-8")

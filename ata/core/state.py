@@ -354,17 +354,14 @@ class SimState:
     returns it for the owner to write); every other component sees it read-only through
     ``sim.group("humans")``. Work passes between models through named queues
     (``sim.queue(name)``). Typed values one component provides for others (a team model's
-    constants) go through ``sim.publish(value)`` and ``sim.published(Type)``. ``sim.params``
-    carries the resolved mission; ``sim.rng`` draws per-scenario numbers. Both are the world's:
-    no decision hook receives them.
+    constants) go through ``sim.publish(value)`` and ``sim.published(Type)``. ``sim.rng`` draws
+    per-scenario numbers: it is the world's, and no decision hook receives it.
     """
 
-    def __init__(self, *, sizes: TeamSize, clock: Clock, rng: BatchRNG,
-                 params: dict[str, Any] | None = None, trace: bool = False):
+    def __init__(self, *, sizes: TeamSize, clock: Clock, rng: BatchRNG, trace: bool = False):
         self.sizes = sizes
         self.clock = clock
         self.rng = rng
-        self.params: dict[str, Any] = params or {}
         self.batch_size = rng.batch_size
         self.now = 0.0
         self.epoch = 0

@@ -3,7 +3,6 @@ constants the decoder assumes, one step's inputs, and how they are written."""
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,35 +15,6 @@ KEEP_FEATURES = 13
 ROBOT_FEATURES = 12
 NAV_FEATURES = 12
 CLS_FEATURES = 14
-
-
-def _quiet(method):
-    """Numpy's warnings off: episodes whose decoding is over carry dummy choices (inf - inf)."""
-
-    @functools.wraps(method)
-    def wrapper(*args, **kwargs):
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return method(*args, **kwargs)
-
-    return wrapper
-
-
-def _fill(out: np.ndarray, parts: list) -> np.ndarray:
-    """Write `parts` side by side along `out`'s last axis and return `out` (float32): each part
-    a column (broadcast to ``out.shape[:-1]``) or a block of columns (``out.ndim`` dimensions),
-    cast as ``astype`` casts: the features np.stack and astype would give, without their
-    intermediate arrays (the decoder builds four such arrays at each of a decode's steps)."""
-    i = 0
-    for part in parts:
-        if np.ndim(part) == out.ndim:
-            w = part.shape[-1]
-            out[..., i:i + w] = part
-            i += w
-        else:
-            out[..., i] = part
-            i += 1
-    assert i == out.shape[-1]
-    return out
 
 
 @dataclass(frozen=True)
