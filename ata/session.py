@@ -21,6 +21,7 @@ from ata.core.registry import OPTIONAL_PLUGINS, Register, providers, requires
 from ata.runtime.heldout import EVAL_FIRST_SCENARIO
 from ata.runtime.inputs import file_digest
 from ata.training.folders import trained_mission
+from ata.training.protocol import Trainer
 
 BUILTIN_MISSION = Path(__file__).resolve().parent / "missions" / "default.toml"
 """`ata run`'s default: the full ATA-HRL method with its shipped weights."""
@@ -148,7 +149,7 @@ def training_mission_for(plugins: list[str]) -> Path:
     return found[wanted]
 
 
-def build_trainer(session: Session) -> Any:
+def build_trainer(session: Session) -> Trainer:
     """The trainer component the mission names in [components] trainer, built from its table;
     its scenario ranges are checked to stay below the evaluation ids."""
     m = session.mission
@@ -162,6 +163,11 @@ def build_trainer(session: Session) -> Any:
         trainer = info.factory(m.component_settings.get(name), m, session.registry)
     except MissionError as exc:
         raise exc.with_file(m.source) from None
+    if not isinstance(trainer, Trainer):
+        missing = [m for m in ("log_fields", "scenario_ranges", "total_steps", "done_steps",
+                               "run") if not hasattr(trainer, m)]
+        raise MissionError("[components]", "trainer", f"{name!r} is no trainer: it lacks "
+                           f"{', '.join(missing)} (ata.training.Trainer)", file=m.source)
     trainer.component_name = name
     for seed, lo, hi in trainer.scenario_ranges():
         if hi > EVAL_FIRST_SCENARIO:

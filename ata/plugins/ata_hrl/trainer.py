@@ -126,12 +126,13 @@ class ATAHRLTrainer:
         self.net = ATAHRLNet(self.cfg)
         self.policy_params = [p for n, p in self.net.named_parameters()
                               if not n.startswith(("fatigue.", "latency.", "status."))]
-        self.opt = torch.optim.Adam(self.policy_params, lr=settings.lr)
-        self.aux_opt = torch.optim.Adam(list(self.net.fatigue.parameters())
-                                        + list(self.net.latency.parameters()),
-                                        lr=settings.aux_lr)
-        self.status_opt = (torch.optim.Adam(self.net.status.parameters(), lr=settings.status_lr)
-                           if self.cfg.status_hidden else None)
+        self.opt: torch.optim.Optimizer = torch.optim.Adam(self.policy_params, lr=settings.lr)
+        self.aux_opt: torch.optim.Optimizer = torch.optim.Adam(
+            list(self.net.fatigue.parameters()) + list(self.net.latency.parameters()),
+            lr=settings.aux_lr)
+        self.status_opt: torch.optim.Optimizer | None = (
+            torch.optim.Adam(self.net.status.parameters(), lr=settings.status_lr)
+            if self.cfg.status_hidden else None)
         self.gen = torch.Generator().manual_seed(settings.seed + 1)
         self.status_gen = torch.Generator().manual_seed(settings.seed + 2)
         self.loop = PhaseLoop(PHASES, self.checkpoint)

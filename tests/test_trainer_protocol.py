@@ -1,0 +1,35 @@
+"""Both built-in trainers are the declared `ata.training.Trainer`, and ATA-HRL's trainer is the
+`Host` its phases are written against (checked by a type checker where one is installed)."""
+
+import importlib.util
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from ata.session import build_trainer, load_session, training_mission_for
+from ata.training import Trainer
+
+
+@pytest.mark.parametrize("plugins", [["ctr", "aux"], ["trp"]])
+def test_the_built_in_trainers_are_trainers(plugins):
+    session = load_session(str(training_mission_for(plugins)))
+    assert isinstance(build_trainer(session), Trainer)
+
+
+@pytest.mark.skipif(importlib.util.find_spec("mypy") is None, reason="mypy is not installed")
+def test_the_ata_hrl_trainer_is_the_host_of_its_phases(tmp_path):
+    probe = tmp_path / "host_probe.py"
+    probe.write_text(textwrap.dedent("""
+        from ata.plugins.ata_hrl.phases.host import Host
+        from ata.plugins.ata_hrl.trainer import ATAHRLTrainer
+
+
+        def as_host(trainer: ATAHRLTrainer) -> Host:
+            return trainer
+    """))
+    done = subprocess.run([sys.executable, "-m", "mypy", "--ignore-missing-imports",
+                           "--follow-imports=silent", "--no-incremental", str(probe)],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stdout + done.stderr
