@@ -33,3 +33,16 @@ def test_the_ata_hrl_trainer_is_the_host_of_its_phases(tmp_path):
                            "--follow-imports=silent", "--no-incremental", str(probe)],
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stdout + done.stderr
+
+
+@pytest.mark.parametrize("level", ["none", "low", "medium", "high"])
+@pytest.mark.parametrize("setting", ["a", "b"])
+def test_mission_replace_derives_what_depends_on_what_it_replaces(setting, level):
+    base = load_session("builtin:greedy").mission
+    validated = load_session("builtin:greedy", [f"mission.setting='{setting}'",
+                                                f"mission.uncertainty='{level}'"]).mission
+    replaced = base.replace(setting=setting, uncertainty=level)
+    assert replaced.settings == validated.settings
+    assert replaced.sizes == validated.sizes
+    assert (replaced.fatigue_variance, replaced.event_probability) == \
+        (validated.fatigue_variance, validated.event_probability)

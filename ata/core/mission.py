@@ -224,9 +224,20 @@ class Mission:
         return tomli_w.dumps(self.resolved())
 
     def replace(self, **mission_keys: Any) -> "Mission":
-        """A copy with some ``[mission]`` keys changed (no re-validation of components)."""
+        """A copy with some ``[mission]`` keys changed (no re-validation of components), and what
+        depends on them derived again as validation derives it: a team setting's sizes, an
+        uncertainty level's fatigue variance and event probability (unless given too)."""
+        keys = dict(mission_keys)
+        team = TEAM_SETTINGS.get(keys.get("setting", ""))
+        if team is not None:
+            for k in ("humans", "robots", "tasks"):
+                keys.setdefault(k, getattr(team, k))
+        level = UNCERTAINTY_LEVELS.get(keys.get("uncertainty", ""))
+        if level is not None:
+            keys.setdefault("fatigue_variance", level[0])
+            keys.setdefault("event_probability", level[1])
         m = copy.deepcopy(self)
-        m.settings = dataclasses.replace(m.settings, **mission_keys)
+        m.settings = dataclasses.replace(m.settings, **keys)
         if "seed" in mission_keys:
             m.secret_seed = False
         return m

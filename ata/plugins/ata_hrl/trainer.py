@@ -25,7 +25,6 @@ import torch
 
 from ata.core.errors import MissionError
 from ata.core.kernel import Simulation, build_component
-from ata.core.mission import TEAM_SETTINGS, UNCERTAINTY_LEVELS
 from ata.core.settings import param
 from ata.plugins.ata_hrl import decode as D
 from ata.plugins.ata_hrl.checkpoint import (FORMAT, KIND, CheckpointError, check_format,
@@ -295,11 +294,9 @@ class ATAHRLTrainer:
         m = self.mission
         setting, _, level = setting.partition("/")
         if setting != m.settings.setting and m.settings.setting != "custom":
-            sz = TEAM_SETTINGS[setting]
-            m = m.replace(setting=setting, humans=sz.humans, robots=sz.robots, tasks=sz.tasks)
+            m = m.replace(setting=setting)          # its sizes follow
         if level:
-            variance, p = UNCERTAINTY_LEVELS[level]
-            m = m.replace(uncertainty=level, fatigue_variance=variance, event_probability=p)
+            m = m.replace(uncertainty=level)        # its variance and probability follow
         return m.replace(seed=seed)
 
     def cycle(self) -> list[str]:
