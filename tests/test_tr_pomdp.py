@@ -12,6 +12,7 @@ from ata.session import build_trainer, load_session, training_mission_for
 from ata.experiment.runner import run_mission
 from ata.core.state import Allocation
 from ata.plugins.conditions import Always
+from ata.model.agents import AgentConfig, AgentInputs, apply_actions, observe
 from ata.plugins.tr_pomdp import agents as dqn
 from ata.plugins.tr_pomdp.policy import TRPOMDPPolicy
 from ata.plugins.tr_pomdp.trainer import Replay
@@ -30,7 +31,7 @@ def session(*extra, plugins=("trp",)):
 def context(setting="a", epochs=3, ids=(0, 1, 2)):
     """A decision context a few epochs into an episode (random ITA, random agents)."""
     s = session(f"mission.setting='{setting}'")
-    nets = dqn.AgentNets(dqn.AgentConfig(k=4, hidden=16))
+    nets = dqn.AgentNets(AgentConfig(k=4, hidden=16))
     agents = TRPOMDPPolicy(TRPOMDPPolicy.Settings(), s.mission, nets=nets, epsilon=1.0)
     sim = Simulation(s.mission, s.registry, list(ids),
                      overrides={"reallocation": agents, "condition": Always(None, s.mission)})
@@ -49,8 +50,8 @@ def _set(table, row_of_entity, column, value):
 @pytest.mark.parametrize("setting", ["a", "b"])
 def test_an_agent_sees_only_its_own_private_state(setting):
     ctx = context(setting)
-    cfg = dqn.AgentConfig(k=4)
-    base = dqn.observe(ctx, cfg)
+    cfg = AgentConfig(k=4)
+    base = observe(ctx, cfg)
     H, R = ctx.sizes.humans, ctx.sizes.robots
     assert base.robot_obs.shape == (3, R, cfg.robot_dim)
     assert base.human_obs.shape == (3, H, cfg.human_dim)
@@ -64,7 +65,7 @@ def test_an_agent_sees_only_its_own_private_state(setting):
                      ("target", 7)):
         _set(rs, 0, col, val)
     # (the roster, which kind of robot each one is, is public: every member knows it)
-    after = dqn.observe(ctx, cfg)
+    after = observe(ctx, cfg)
     # every other agent's input is unchanged, bit for bit...
     assert np.array_equal(after.human_obs[:, 1:], base.human_obs[:, 1:])
     assert np.array_equal(after.human_legal[:, 1:], base.human_legal[:, 1:])
@@ -79,8 +80,8 @@ def test_an_agent_sees_only_its_own_private_state(setting):
 
 def test_observation_layout_and_legal_actions():
     ctx = context()
-    cfg = dqn.AgentConfig(k=4)
-    inp = dqn.observe(ctx, cfg)
+    cfg = AgentConfig(k=4)
+    inp = observe(ctx, cfg)
     prev, movable = ctx.previous, ctx.reallocatable
     B, R, K = inp.robot_cand.shape
     rx, ry = ctx.observed["robots"].col("x"), ctx.observed["robots"].col("y")
@@ -108,19 +109,19 @@ def test_joint_action_resolves_conflicts_by_q():
     P, K = 5, 2
     prev = Allocation(np.zeros((1, P), np.int64), np.full((1, P), -1), np.full((1, P), -1))
     prev.classifier[0, 3] = 1
-    inp = dqn.AgentInputs(
+    inp = AgentInputs(
         robot_obs=None, robot_legal=None, human_obs=None, human_legal=None,
         robot_cand=np.array([[[2, 4], [2, 1]]]),                # robots 0, 1 both eye POI 2
         human_new=np.array([[[0, 1], [0, 4]]]), human_held=np.array([[[0, 0], [3, 0]]]),
         human_load=None, robot_load=None)
-    alloc = dqn.apply_actions(
+    alloc = apply_actions(
         prev, inp, robot_a=np.array([[1, 1]]), robot_q=np.array([[0.5, 0.9]]),
         human_a=np.array([[1, 2 * K + 1]]), human_q=np.array([[0.1, 0.2]]), k=K)
     assert alloc.robot[0, 2] == 1                  # the higher Q wins
     assert alloc.classifier[0, 3] == -1            # human 1 released its classification
     assert alloc.classifier[0, 0] == 0             # human 0 took POI 0
     # both humans claim POI 0's classification: the higher Q wins
-    alloc = dqn.apply_actions(prev, inp, np.zeros((1, 2), int), np.zeros((1, 2)),
+    alloc = apply_actions(prev, inp, np.zeros((1, 2), int), np.zeros((1, 2)),
                               np.array([[1, 1]]), np.array([[0.3, 0.7]]), K)
     assert alloc.classifier[0, 0] == 1 and (alloc.robot == prev.robot).all()
 

@@ -1,6 +1,6 @@
 """The decentralised view as a PettingZoo ``ParallelEnv``: one agent per team member.
 
-The agents are TR-POMDP's (``ata.plugins.tr_pomdp.agents``, the baseline of Wu et al. as
+The agents are TR-POMDP's (``ata.model.agents``, the baseline of Wu et al. as
 `ata train --plugins trp` trains it), with the same partial observations and actions:
 
 - agents ``human_0 .. human_{H-1}`` and ``robot_0 .. robot_{R-1}``;
@@ -38,7 +38,7 @@ from pettingzoo import ParallelEnv
 from ata.session import Session
 from ata.core.state import DecisionContext
 from ata.gym.episodes import Episodes, load
-from ata.plugins.tr_pomdp import agents as trp
+from ata.model import agents as trp
 
 
 class DecentralisedParallelEnv(ParallelEnv):

@@ -18,6 +18,7 @@ import numpy as np
 
 from ata import hookimpl
 from ata.core.state import Allocation, DecisionContext
+from ata.model.agents import AgentConfig, AgentInputs, apply_actions, observe
 from ata.plugins.tr_pomdp import agents as dqn
 from ata.plugins.tr_pomdp.settings import Settings as TRPOMDPSettings
 from ata.training import CheckpointError, load_cached, trained_on
@@ -32,7 +33,7 @@ def agents_from_checkpoint(data: dict[str, Any], path: str | Path) -> dqn.AgentN
         raise CheckpointError(path, "holds no TR-POMDP agents (train them with "
                                     "`ata train --plugins trp`)")
     try:
-        nets = dqn.AgentNets(dqn.AgentConfig(**data["agents_config"]))
+        nets = dqn.AgentNets(AgentConfig(**data["agents_config"]))
         nets.load_state_dict(data["agents"])
     except (TypeError, RuntimeError) as exc:
         raise CheckpointError(path, f"agents do not fit their architecture: "
@@ -49,7 +50,7 @@ def load_agents(spec: str) -> dqn.AgentNets:
 class Transition:
     """One epoch of the agents, as a trainer records it."""
 
-    inputs: dqn.AgentInputs
+    inputs: AgentInputs
     robot_a: np.ndarray
     human_a: np.ndarray
 
@@ -77,9 +78,9 @@ class TRPOMDPPolicy:
     @hookimpl
     def ata_reallocate(self, ctx: DecisionContext, active: np.ndarray) -> Allocation:
         cfg = self.nets.cfg
-        inputs = dqn.observe(ctx, cfg)
+        inputs = observe(ctx, cfg)
         ra, rq, ha, hq = dqn.act(self.nets, inputs, self.epsilon, ctx)
         if self.log is not None:
             self.log.append(Transition(inputs, ra, ha))
-        return dqn.apply_actions(ctx.previous, inputs, ra, rq, ha, hq, cfg.k)
+        return apply_actions(ctx.previous, inputs, ra, rq, ha, hq, cfg.k)
 

@@ -28,6 +28,7 @@ import torch
 
 from ata.core.errors import MissionError
 from ata.core.kernel import Simulation, build_component
+from ata.model.agents import AgentConfig, load_terms
 from ata.plugins.tr_pomdp import agents as dqn
 from ata.plugins.tr_pomdp.policy import KIND, TRPOMDPPolicy, Transition, agents_from_checkpoint
 from ata.plugins.tr_pomdp.settings import Settings
@@ -82,7 +83,7 @@ class AgentLearner:
 
     def __init__(self, t: Settings):
         self.t = t
-        self.cfg = dqn.AgentConfig(k=t.k, hidden=t.hidden)
+        self.cfg = AgentConfig(k=t.k, hidden=t.hidden)
         self.nets = dqn.AgentNets(self.cfg)
         self.target = copy.deepcopy(self.nets)
         self.opt = torch.optim.Adam(self.nets.parameters(), lr=t.lr)
@@ -121,7 +122,7 @@ class AgentLearner:
             epoch = i + 1
             last = i == len(log) - 1
             nxt = step if last else log[i + 1]
-            over_r, over_h = dqn.load_terms(nxt.inputs, t.human_load_cap)
+            over_r, over_h = load_terms(nxt.inputs, t.human_load_cap)
             gain = np.where(record.task_epoch == epoch, record.task_gain, 0.0)     # (B, P)
             alloc = record.allocations[:, epoch].astype(np.int64)                   # (B, P, 3)
             own_r = np.einsum("bp,bpr->br", gain, alloc[..., 0, None] == np.arange(R))
