@@ -129,7 +129,8 @@ def build_model(d: ScenarioData, s: MilpSettings, margin_scale: float = 1.0) -> 
 
     def success(quality, difficulty, f_f, f_w):
         on = tables.P_RC[quality, difficulty]
-        hum = 0.5 + d.eta[ch] * f_f * f_w * d.lam[ch] * tables.F_D[quality, difficulty]
+        hum = tables.human_success(d.eta[ch], d.lam[ch], f_f, f_w,
+                                   tables.F_D[quality, difficulty])
         return np.where(human, hum, on)
 
     f_f_nom = d.fatigue_now[ch]
