@@ -77,7 +77,7 @@ def refuse_world_hooks(pm: pluggy.PluginManager, deciders: list[tuple[str, Any]]
                     f"{slot} component {comp!r} implements {hook_name}, which "
                     "hands it the world's state and generator: a decision-maker sees the "
                     "scenario through its DecisionContext alone (a reconstructor through "
-                    f"ata_reconstruct; see docs/plugins.md){instead}")
+                    f"ata_reconstruct; see docs/decisions.md){instead}")
 
 
 def _names(value: str | list[str]) -> list[str]:
@@ -172,7 +172,7 @@ class Simulation:
                     f"{slot} component {comp!r} implements {REFERENCE_HOOK}, which hands it "
                     "the true state: only a reconstructor whose class declares reference = "
                     "True may, and its results are labelled a reference, never a method (see "
-                    "docs/plugins.md)")
+                    "docs/decisions.md)")
             if declared and comp not in names:
                 names.append(comp)
         return names

@@ -5,7 +5,7 @@ and the policies alike (a policy never imports a team model or another policy to
   workload, P_hc, working time, utilisation, SA), and the codes of kinds, difficulties, qualities.
 * `ata.model.team`: the model's default constants, and the typed constants a team model publishes
   for the policies (`HumanConstants`, `RobotConstants`).
-* `ata.model.fatigue`: individual fatigue (revision 3) and the `FatigueBelief` a planner
+* `ata.model.fatigue`: individual fatigue and the `FatigueBelief` a planner
   projects it with.
 * `ata.model.plan`: plans in expectation: where a plan starts from at a decision epoch
   (`plan_start`) and what a fixed allocation is expected to earn from there (`project`).
@@ -20,5 +20,5 @@ and the policies alike (a policy never imports a team model or another policy to
 * `ata.model.events`: the events a policy sees (robots newly down, POIs newly changed), for the
   ``on_event`` condition and the learned conditions alike.
 
-docs/plugins.md ("The domain library") shows how a component uses it.
+docs/library.md shows how a component uses it.
 """

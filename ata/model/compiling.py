@@ -7,7 +7,7 @@ user cache.
 
 numba checks a cached function against its own source file alone, not against the files of the
 functions it calls, which it compiles in: a change to `ata.model.scalar` would leave the POI
-step's cached code computing the old formula. So a function compiled here is checked, beside its
+step's cached code computing a formula the source no longer says. So a function compiled here is checked, beside its
 own file, against every Python file of its folder and of the host's `ata.model` (where the
 formulas the loops share live): a change to any of them compiles it again.
 """

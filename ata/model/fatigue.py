@@ -1,10 +1,10 @@
-"""Individual fatigue (docs/model.md: "Humans", revision 3), and what a policy believes about it.
+"""Individual fatigue (docs/model.md: "Humans"), and what a policy believes about it.
 
 A human's F_f is 1 below the onset T_on (hours of work), then ``max(floor, 1 - k (T - T_on))``.
 Each human's onset and slope are drawn per scenario and hidden; ``fatigue_spread`` s sets how far
 they range around the testbed's population line (onset 1 h, slope 0.3 per hour):
 ``T_on ~ U(1 - s/2, 1 + s/2)``, ``k ~ U(0.3 (1 - 2s/3), 0.3 (1 + 2s/3))``. With s = 0 every human
-has the population line, and `individual` equals revision 2's `tables.fatigue` bit for bit.
+has the population line, and `individual` equals `tables.fatigue` to the bit.
 
 A planner projects fatigue ahead with a `FatigueBelief`: for every human, a weighted set of
 (onset, slope) curves, whose weighted mean is the estimate of F_f at any working time, plus an
@@ -27,7 +27,7 @@ ONSET_H = 1.0
 SLOPE_PER_H = 0.3
 """The population's fatigue slope, per hour of work after the onset ([testbed])."""
 FATIGUE_SPREAD = 1.0
-"""The default spread s of the individual onsets and slopes ([default], revision 3)."""
+"""The default spread s of the individual onsets and slopes ([default])."""
 
 BELIEF_KEYS = ("fatigue_onset", "fatigue_slope", "fatigue_weight")
 """The keys of ``ctx.reconstructed`` that carry a `FatigueBelief` (each (B, H, K))."""
@@ -50,7 +50,7 @@ def individual(hours: np.ndarray, onset: np.ndarray, slope: np.ndarray,
                floor: float) -> np.ndarray:
     """F_f at working time `hours` of humans with this onset and slope (broadcast): 1 before
     the onset, then ``max(floor, 1 - k (T - T_on))``, written as ``(1 + k T_on) - k T`` so that
-    onset 1 and slope 0.3 give revision 2's ``1.3 - 0.3 T`` bit for bit."""
+    onset 1 and slope 0.3 give the population line ``1.3 - 0.3 T`` to the bit."""
     h = np.asarray(hours, dtype=float)
     return np.where(h < onset, 1.0, np.maximum(floor, (1.0 + slope * onset) - slope * h))
 

@@ -10,7 +10,7 @@ take work first come first served, workload is taken as 1, and a classification 
 by the horizon earns nothing. Fatigue is each human's `FatigueBelief` (`fatigue_belief`) read at
 the working hours the plan has booked: a reconstructor's estimate of the human's curve where one
 gave it (``fatigue.BELIEF_KEYS``), else the fatigue of S now moved along the population line
-(with ``identity``, the raw noisy observation: model revision 3 hides the individual curves).
+(with ``identity``, the raw noisy observation: the model hides the individual curves).
 The capture time and the fatigue floor are the ones the team models publish (`ata.model.team`).
 """
 

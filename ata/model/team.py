@@ -45,7 +45,7 @@ SKILL_SPEED = (2.0 / 3.0, 1.0, 1.5)
 
 @dataclass(frozen=True)
 class HumanConstants:
-    """The human model's constants that a policy may assume (docs/model.md)."""
+    """The human model's constants that a policy may assume (docs/library.md)."""
 
     published_by: ClassVar[str] = "the human model (slot human_model)"
 
@@ -62,7 +62,7 @@ class HumanConstants:
 
 @dataclass(frozen=True)
 class RobotConstants:
-    """The robot model's constants that a policy may assume (docs/model.md)."""
+    """The robot model's constants that a policy may assume (docs/library.md)."""
 
     published_by: ClassVar[str] = "the robot model (slot robot_model)"
 

@@ -1,7 +1,7 @@
 """The filter reconstructor: a classical estimate of S, with no learning (a grid posterior over
 each human's hidden fatigue curve; the last fresh robot and task rows and their age).
 
-Humans (docs/model.mdrevision 3). Each human's fatigue curve has a hidden onset
+Humans (docs/model.md, "Humans"). Each human's fatigue curve has a hidden onset
 and slope, drawn uniformly over the public prior's ranges (`onset_range`, `slope_range` of the
 published ``HumanConstants.fatigue_spread``). The filter keeps, per scenario and human, a
 posterior over a grid of K = onsets x slopes curves at the midpoints of equal cells of those

@@ -4,7 +4,7 @@ first-come-first-served busy timeline per human (docs/model.md: "Humans").
 Each human tires on an individual curve (`ata.model.fatigue.individual`): an onset and a slope
 drawn at set-up within the ranges ``fatigue_spread`` sets, hidden from every decision-maker
 (neither inherent information nor observed state). With ``fatigue_spread = 0`` every human has
-the testbed's population line, and the model is model revision 2's bit for bit.
+the testbed's population line (`ata.model.tables.fatigue`), to the bit.
 
 It owns group ``humans`` (`HumanState`).
 

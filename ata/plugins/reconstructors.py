@@ -1,6 +1,6 @@
 """The identity reconstructor: passes the observed state on unchanged (the w/o.AUX ablation); the
 arrivals reconstructor: captures that the latency hides, read from the robot rows; the oracle:
-the true state, a reference (docs/model.md's value of information), never a method."""
+the true state, a reference (docs/methods.md's value of information), never a method."""
 
 from __future__ import annotations
 

@@ -164,7 +164,7 @@ class PoiTaskModel:
 
 
 def upper_bound(sim: SimState) -> np.ndarray:
-    """U = sum_p max(0, points_p (2 P*_p - 1)), docs/model.md, "Methods compared".
+    """U = sum_p max(0, points_p (2 P*_p - 1)), docs/methods.md, "Methods compared".
 
     P*_p is the best success probability any member could reach on p's true attributes with
     F_f = F_w = 1: the best image quality any robot reaches there (auto, or under the team's most
