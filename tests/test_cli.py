@@ -478,3 +478,12 @@ def test_run_and_eval_refuse_a_training_run_folder(cli, tiny, tmp_path, command)
                                              "training run (log.csv); choose another folder")
     assert (folder / "mission.resolved.toml").read_text() == before
     assert sorted(p.name for p in folder.iterdir()) == ["log.csv", "mission.resolved.toml"]
+
+
+def test_a_swapped_component_shows_in_the_display_name(cli, tmp_path):
+    from ata.session import load_session
+    mission = load_session(None, ["components.condition='always'"]).mission
+    assert mission.display_name() == "ATA-HRL [condition=always]"
+    assert load_session(None, ["components.condition='always'",
+                               "mission.title='w/o.C'"]).mission.display_name() == "w/o.C"
+    assert load_session(None).mission.display_name() == "ATA-HRL"

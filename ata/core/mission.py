@@ -127,6 +127,8 @@ class Mission:
     source: str = "<built-in>"
     secret_seed: bool = False            # the seed came from the environment: never written
     references: dict[str, Any] = field(default_factory=dict)   # name -> references.Reference
+    swapped: dict[str, str] = field(default_factory=dict)
+    """[components] keys that a ``--set`` changed (slot -> value): the display name says so."""
 
     def __getstate__(self) -> dict[str, Any]:
         # a referenced component's settings travel as plain values: its class is loaded again
@@ -178,8 +180,12 @@ class Mission:
         return label + (f" + {', '.join(recon)}" if recon else "")
 
     def display_name(self) -> str:
-        """The mission's ``title``, else its method label."""
-        return self.settings.title or self.method_label()
+        """The mission's ``title`` (with the components a ``--set`` swapped, as in "ATA-HRL
+        [condition=always]"), else its method label."""
+        if not self.settings.title:
+            return self.method_label()
+        swaps = ", ".join(f"{k}={v}" for k, v in self.swapped.items())
+        return self.settings.title + (f" [{swaps}]" if swaps else "")
 
     @property
     def clock(self) -> Clock:
@@ -361,9 +367,14 @@ def validate(raw: dict[str, Any], registry: Register, source: str = "<built-in>"
         names that ``--set``, not the file.
     """
     try:
-        return _validate(raw, registry, source)
+        mission = _validate(raw, registry, source)
     except MissionError as exc:
         raise exc.with_file(_blamed(exc, overrides) or source) from None
+    keys = [parse_override(text) for text in overrides]
+    if not any(path[:2] == ["mission", "title"] for path, _ in keys):
+        mission.swapped = {path[1]: ",".join(map(str, v)) if isinstance(v, list) else str(v)
+                           for path, v in keys if path[0] == "components" and len(path) == 2}
+    return mission
 
 
 def _blamed(exc: MissionError, overrides: list[str]) -> str | None:
