@@ -19,7 +19,7 @@ import tomli_w
 from ata.core import references as refs_mod
 from ata.core.errors import MissionError
 from ata.core.registry import Register
-from ata.core.seeds import SECRET_SEED_MIN, seed_hash, secret_seed  # noqa: F401
+from ata.core.seeds import seed_hash, secret_seed  # noqa: F401  (seed_hash: a test reads it here)
 from ata.core.settings import build_settings, for_team, param, settings_dict
 from ata.core.state import Clock, TeamSize
 
@@ -127,8 +127,7 @@ class Mission:
     source: str = "<built-in>"
     secret_seed: bool = False            # the seed came from the environment: never written
     references: dict[str, Any] = field(default_factory=dict)   # name -> references.Reference
-    swapped: dict[str, str] = field(default_factory=dict)
-    """[components] keys that a ``--set`` changed (slot -> value): the display name says so."""
+    swapped: dict[str, str] = field(default_factory=dict)   # [components] a --set changed
 
     def __getstate__(self) -> dict[str, Any]:
         # a referenced component's settings travel as plain values: its class is loaded again
@@ -182,10 +181,9 @@ class Mission:
     def display_name(self) -> str:
         """The mission's ``title`` (with the components a ``--set`` swapped, as in "ATA-HRL
         [condition=always]"), else its method label."""
-        if not self.settings.title:
-            return self.method_label()
         swaps = ", ".join(f"{k}={v}" for k, v in self.swapped.items())
-        return self.settings.title + (f" [{swaps}]" if swaps else "")
+        return (self.settings.title + (f" [{swaps}]" if swaps else "")) if self.settings.title \
+            else self.method_label()
 
     @property
     def clock(self) -> Clock:
@@ -231,17 +229,15 @@ class Mission:
 
     def replace(self, **mission_keys: Any) -> "Mission":
         """A copy with some ``[mission]`` keys changed (no re-validation of components), and what
-        depends on them derived again as validation derives it: a team setting's sizes, an
-        uncertainty level's fatigue variance and event probability (unless given too)."""
-        keys = dict(mission_keys)
-        team = TEAM_SETTINGS.get(keys.get("setting", ""))
-        if team is not None:
-            for k in ("humans", "robots", "tasks"):
-                keys.setdefault(k, getattr(team, k))
-        level = UNCERTAINTY_LEVELS.get(keys.get("uncertainty", ""))
-        if level is not None:
-            keys.setdefault("fatigue_variance", level[0])
-            keys.setdefault("event_probability", level[1])
+        depends on them derived again as validation derives it (unless given too): a team
+        setting's sizes, an uncertainty level's fatigue variance and event probability."""
+        keys, team = dict(mission_keys), TEAM_SETTINGS.get(mission_keys.get("setting", ""))
+        for k in ("humans", "robots", "tasks") if team is not None else ():
+            keys.setdefault(k, getattr(team, k))
+        level = UNCERTAINTY_LEVELS.get(keys.get("uncertainty", ""), (None, None))
+        for k, v in zip(("fatigue_variance", "event_probability"), level):
+            if v is not None:
+                keys.setdefault(k, v)
         m = copy.deepcopy(self)
         m.settings = dataclasses.replace(m.settings, **keys)
         if "seed" in mission_keys:
@@ -371,9 +367,9 @@ def validate(raw: dict[str, Any], registry: Register, source: str = "<built-in>"
     except MissionError as exc:
         raise exc.with_file(_blamed(exc, overrides) or source) from None
     keys = [parse_override(text) for text in overrides]
-    if not any(path[:2] == ["mission", "title"] for path, _ in keys):
-        mission.swapped = {path[1]: ",".join(map(str, v)) if isinstance(v, list) else str(v)
-                           for path, v in keys if path[0] == "components" and len(path) == 2}
+    mission.swapped = {} if any(p[:2] == ["mission", "title"] for p, _ in keys) else {
+        p[1]: ",".join(map(str, v)) if isinstance(v, list) else str(v)
+        for p, v in keys if p[0] == "components" and len(p) == 2}
     return mission
 
 

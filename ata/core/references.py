@@ -17,6 +17,7 @@ it, so that results made with other code are never resumed as if they were curre
 
 from __future__ import annotations
 
+import ast
 import hashlib
 import importlib
 import importlib.util
@@ -130,7 +131,7 @@ def component_name(factory: Any) -> str:
 
 
 def _info(kind: str, name: str, factory: Any, source: str, digest: str) -> Any:
-    from ata.core.registry import ComponentInfo
+    from ata.core.registry import ComponentInfo   # on use: the registry imports this module
     return ComponentInfo(kind, name, factory, plugin=f"reference {source}",
                          dist=f"{source.rpartition(':')[0]} sha256:{digest[:16]}")
 
@@ -244,7 +245,6 @@ def _imported(path: Path, name: str, package: bool) -> list[str]:
     stat = path.stat()
     key = (str(path), stat.st_mtime_ns, stat.st_size)
     if key not in _IMPORTS:
-        import ast
         here = name if package else name.rpartition(".")[0]
         found: list[str] = []
         try:

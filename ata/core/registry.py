@@ -140,7 +140,7 @@ def _broken(pm: pluggy.PluginManager, broken: BrokenPlugin) -> None:
     if known is None:
         known = pm.ata_broken = []
     known.append(broken)
-    import multiprocessing
+    import multiprocessing   # on use: a plugin left out is rare, and its import is slow
     # a worker process rebuilds the registry: the command that started it has reported it
     seen = _reported.setdefault(sys.stderr, set())
     if broken.line() not in seen and multiprocessing.parent_process() is None:
@@ -429,7 +429,7 @@ def plugin_version(pm: pluggy.PluginManager, plugin: Any) -> str:
     try:
         return f"{top} {metadata.version(top)}"
     except metadata.PackageNotFoundError:
-        from ata import __version__
+        from ata import __version__   # on use: ata's package imports this module
         return f"{top} {__version__}" if top == "ata" else f"{top} (not installed)"
 
 

@@ -54,14 +54,14 @@ def parallel_env(mission: str | Path | Session | None = None, *,
                  overrides: Sequence[str] = (), k: int = 4) -> "DecentralisedParallelEnv":
     """The decentralised view: a PettingZoo ``ParallelEnv`` with one agent per human and robot
     (TR-POMDP's agents, `k` candidate POIs each)."""
-    from ata.gym.decentralised import DecentralisedParallelEnv
+    from ata.gym.decentralised import DecentralisedParallelEnv   # the extra's pettingzoo
     return DecentralisedParallelEnv(mission, overrides=overrides, k=k)
 
 
 def __getattr__(name: str) -> Any:
     """`DecentralisedParallelEnv`, imported (with PettingZoo) when first asked for."""
     if name == "DecentralisedParallelEnv":
-        from ata.gym.decentralised import DecentralisedParallelEnv
+        from ata.gym.decentralised import DecentralisedParallelEnv   # the extra's pettingzoo
         return DecentralisedParallelEnv
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 

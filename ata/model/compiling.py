@@ -7,9 +7,10 @@ user cache.
 
 numba checks a cached function against its own source file alone, not against the files of the
 functions it calls, which it compiles in: a change to `ata.model.scalar` would leave the POI
-step's cached code computing a formula the source no longer says. So a function compiled here is checked, beside its
-own file, against every Python file of its folder and of the host's `ata.model` (where the
-formulas the loops share live): a change to any of them compiles it again.
+step's cached code computing a formula its source no longer says. So a function compiled here
+is checked, beside its own file, against every Python file of its folder and of the host's
+`ata.model` (where the formulas the loops share live): a change to any of them compiles it
+again.
 """
 
 from __future__ import annotations
@@ -44,7 +45,7 @@ def _make_cache():
     """numba's function cache whose locators add `_stamp` to the source's own; None where this
     numba's cache classes are not the ones this was written against."""
     try:
-        from numba.core import caching
+        from numba.core import caching   # on use: numba's cache internals, probed
 
         def stamped(cls):
             class Stamped(cls):

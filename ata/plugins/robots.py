@@ -27,6 +27,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ata import hookimpl
+from ata.core.errors import MissionError
 from ata.core.settings import param
 from ata.core.queues import run_starts, scatter
 from ata.core.state import Allocation, Observation, SimState
@@ -121,7 +122,6 @@ class RobotModel:
         def __post_init__(self) -> None:
             # checked with the table, so that the error names the mission file (or --set)
             if len(self.skill_speed) != 3:
-                from ata.core.errors import MissionError
                 raise MissionError("[robot]", "skill_speed", "needs exactly three factors "
                                    "(low, medium, high skill)")
 

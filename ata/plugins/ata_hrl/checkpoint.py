@@ -34,7 +34,7 @@ def check_format(data: dict[str, Any], path: str | Path) -> None:
 
 def net_from_checkpoint(data: dict[str, Any], path: str | Path, expect=None):
     """Build the ATA-HRL network a checkpoint describes and load its weights."""
-    from ata.plugins.ata_hrl.network import ATAHRLNet, NetConfig
+    from ata.plugins.ata_hrl.network import ATAHRLNet, NetConfig   # on use: torch
     if "model" not in data or "config" not in data:
         raise CheckpointError(path, "holds no ATA-HRL network (no model or config)")
     check_format(data, path)

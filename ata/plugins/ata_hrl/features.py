@@ -63,7 +63,8 @@ def state_features(S: Observation, fatigue: np.ndarray | None = None) -> dict[st
     h, r, t = S["humans"], S["robots"], S["tasks"]
     f = h.col("fatigue") if fatigue is None else fatigue
     return {
-        "humans": np.stack([h.col("working_time") / HOURS_UNIT, f, h.col("idleness"), h.col("sa")], -1),
+        "humans": np.stack([h.col("working_time") / HOURS_UNIT, f, h.col("idleness"),
+                            h.col("sa")], -1),
         "robots": np.stack([r.col("x"), r.col("y"), r.col("idleness"), r.col("working"),
                             (r.col("target") >= 0).astype(float)], -1),
         "tasks": np.concatenate([np.stack([t.col("unvisited"), t.col("captured"),

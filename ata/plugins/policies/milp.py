@@ -28,6 +28,7 @@ import numpy as np
 from scipy.optimize import Bounds, LinearConstraint, milp
 
 from ata import hookimpl
+from ata.core.errors import MissionError
 from ata.core.state import Allocation, DecisionContext, EpisodeOutcome
 from ata.runtime.cache import cache_dir
 from ata.runtime.executors import ProcessExecutor
@@ -163,7 +164,7 @@ def _code_version() -> str:
     scipy)."""
     global _code_hash
     if _code_hash is None:
-        import scipy
+        import scipy   # on use: scipy's version, once
 
         h = hashlib.sha256(f"{CACHE_FORMAT} scipy {scipy.__version__}".encode())
         for module_file in (__file__, milp_model.__file__, tables.__file__):
@@ -281,7 +282,6 @@ class MilpPolicy:
 
     def __init__(self, settings: MilpSettings, mission):
         if len(settings.redundancy_margin) != 3:
-            from ata.core.errors import MissionError
             raise MissionError("[milp]", "redundancy_margin", "needs three margins (low, "
                                "medium, high difficulty)", file=mission.source)
         self.s = settings

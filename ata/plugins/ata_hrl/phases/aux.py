@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from ata import hookimpl
 from ata.core.kernel import Simulation, build_component
 from ata.core.settings import param
 from ata.plugins.ata_hrl.components import AuxReconstructor
@@ -45,7 +46,6 @@ observed fatigue, the working hours, the cognitive ability."""
 def teacher_log(trainer: Host, mission, ids: np.ndarray) -> dict[str, list]:
     """Roll out the greedy teacher on scenarios `ids` and log the observed and the true S of
     every epoch (and, with a status head, its inputs and targets)."""
-    from ata import hookimpl
 
     log = {"raw": [], "true": [], "fatigue": [], "cognitive": None,
            "status_in": [], "status_target": []}

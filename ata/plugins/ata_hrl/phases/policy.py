@@ -84,7 +84,7 @@ def on_device(net: torch.nn.Module, optimizers: list[torch.optim.Optimizer],
     if device.type == "cpu":
         yield
         return
-    from torch.nn.attention import SDPBackend, sdpa_kernel
+    from torch.nn.attention import SDPBackend, sdpa_kernel   # on use: a GPU's kernels
     move(net, optimizers, device)
     try:
         # attention by its plain formula: the fused kernels' backward passes are not
