@@ -2,8 +2,9 @@
 
 A *suite* file (`ata.experiment.suites`) names methods (each a mission file plus ``--set``
 overrides) and the settings and uncertainty levels to run them at; a plain mission file counts
-as one method at its own setting and level. Every (method, setting, level) becomes a *job*: a validated mission whose scenarios
-are cut into chunks, the work units that an executor (ata.runtime.executors) runs anywhere. A
+as one method at its own setting and level. Every (method, setting, level) becomes a *job*: a
+validated mission whose scenarios are cut into chunks, the work units that an executor
+(ata.runtime.executors) runs anywhere, where the job's backend (``ata.backend``) says. A
 scenario's numbers depend on (seed, scenario id) alone, so the rows do not depend on the
 executor, the worker count or the chunk size.
 
@@ -87,8 +88,9 @@ def check_held_out(mission: Mission, sim: Simulation) -> None:
             if seed == t_seed and lo < t_hi and t_lo < hi:
                 raise MissionError("[mission]", "first_scenario", f"scenarios {lo}..{hi - 1} "
                                    f"of seed {mission.seed_label} overlap the ids "
-                                   f"{t_lo}..{t_hi - 1} of that seed that a component's weights were trained on; "
-                                   "evaluation scenarios must be held out")
+                                   f"{t_lo}..{t_hi - 1} of that seed that a component's "
+                                   "weights were trained on; evaluation scenarios must be held "
+                                   "out")
 
 
 def _pick(values: list[str] | None, wanted: list[str] | None) -> list[str | None]:

@@ -17,8 +17,9 @@ A set of published rows is a folder (under ``ata/published/NAME``, or anywhere) 
 `publish` writes one from an `ata eval` folder (`ata publish EVAL_DIR --out DIR`). `check_pairing`
 refuses to pair a folder of results against a set when a cell's scenarios are not among the
 set's, its model revision differs, or the code or the cell's weights of a published method
-differ from those installed now. `rerun_sample` reruns a sample of a set's rows and names every row that is not
-identical.
+differ from those installed now. ``ata.experiment.reproduce.rerun_sample`` reruns a sample of a
+set's rows and names every row that is not identical; `ata.published.backend` reads a suite's
+``published:METHOD`` from a set.
 
 The reference code and weights are checked against the installed ones from each published
 method's resolved mission: a set is valid for the version whose code made it.
