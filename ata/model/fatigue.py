@@ -22,6 +22,8 @@ from typing import Mapping
 
 import numpy as np
 
+from ata.model.generic import as_float, select
+
 ONSET_H = 1.0
 """The population's fatigue onset, hours of work (docs/model.md, "Humans"[testbed])."""
 SLOPE_PER_H = 0.3
@@ -50,9 +52,10 @@ def individual(hours: np.ndarray, onset: np.ndarray, slope: np.ndarray,
                floor: float) -> np.ndarray:
     """F_f at working time `hours` of humans with this onset and slope (broadcast): 1 before
     the onset, then ``max(floor, 1 - k (T - T_on))``, written as ``(1 + k T_on) - k T`` so that
-    onset 1 and slope 0.3 give the population line ``1.3 - 0.3 T`` to the bit."""
-    h = np.asarray(hours, dtype=float)
-    return np.where(h < onset, 1.0, np.maximum(floor, (1.0 + slope * onset) - slope * h))
+    onset 1 and slope 0.3 give the population line ``1.3 - 0.3 T`` to the bit. The one
+    definition of the curve: the compiled loops run this function too (`ata.model.scalar`)."""
+    h = as_float(hours)
+    return select(h < onset, 1.0, np.maximum(floor, (1.0 + slope * onset) - slope * h))
 
 
 @dataclass(frozen=True)

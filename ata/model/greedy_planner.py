@@ -131,7 +131,8 @@ def _human_gain(skill: np.ndarray, f_d: np.ndarray, points12: np.ndarray) -> np.
     """Expected points of a human classification for each of the 12 (quality, difficulty)
     combinations (`f_d` and `points12` the F_D table and the points of each, raveled), for
     humans whose eta * F_f * lambda is `skill` (any shape; the combinations a new last axis)."""
-    return points12 * (2 * (0.5 + skill[..., None] * f_d) - 1)
+    return tables.expected_points(points12, tables.human_success(skill[..., None], 1.0, 1.0, 1.0,
+                                                                  f_d))
 
 
 def peak_bytes(batch: int, humans: int, robots: int, tasks: int) -> int:

@@ -101,12 +101,12 @@ class HumanLoad:
         if greedy:
             f_f = self.fatigue_greedy()[sel][:, None, :]
             f_w = u = None
-            p = 0.5 + self._eta_lam[sel] * f_f * f_d
+            p = tables.human_success(self._eta_lam[sel], 1.0, f_f, 1.0, f_d)
         else:
             f_f = self.fatigue_at()[sel][:, None, :]
             u = self.utilisation_at(begin, rows)
             f_w = tables.workload(u)
-            p = 0.5 + self._eta_lam[sel] * f_f * f_w * f_d
+            p = tables.human_success(self._eta_lam[sel], 1.0, f_f, f_w, f_d)
         return p, finish, begin, u, f_w, f_f
 
     def take(self, rows: np.ndarray) -> "HumanLoad":

@@ -2,7 +2,9 @@
 free first going to its nearest POI left, one POI a step, with the members' free times, the
 humans' booked seconds and the expected points of every POI. The order of operations is the
 array formulation's, step for step (and numpy's pairwise sum where the fatigue belief weighs
-its curves), so the projection gives the same bits (tests/test_compiled_steps.py)."""
+its curves), so the projection gives the same bits (tests/test_compiled_steps.py). The
+formulas are the host's own (`ata.model.scalar`): the fatigue curve, P_hc, the expected
+points."""
 
 from __future__ import annotations
 
@@ -75,23 +77,17 @@ def _pairwise(a: np.ndarray, n: int) -> float:
 
 
 @jit
-def _individual(h: float, onset: float, slope: float, floor: float) -> float:
-    if h < onset:
-        return 1.0
-    return max(floor, (1.0 + slope * onset) - slope * h)
-
-
-@jit
 def belief_ahead(onset, slope, weight, offset, floor, hours, free, now, b, h, scratch):
     """`FatigueBelief.ahead` of human h of scenario b: the estimate of F_f at the working
     hours now plus the time booked until `free`."""
     t = hours + max(free - now, 0.0) / 3600.0
     K = weight.shape[2]
     if K == 1:
-        f = _individual(t, onset[b, h, 0], slope[b, h, 0], floor)
+        f = scalar.individual(t, onset[b, h, 0], slope[b, h, 0], floor)
     else:
         for k in range(K):
-            scratch[k] = weight[b, h, k] * _individual(t, onset[b, h, k], slope[b, h, k], floor)
+            scratch[k] = weight[b, h, k] * scalar.individual(t, onset[b, h, k], slope[b, h, k],
+                                                              floor)
         f = _pairwise(scratch, K)
     return min(max(f + offset[b, h], floor), 1.0)
 
@@ -151,7 +147,7 @@ def project_loop(left, owner, robot_free, rx, ry, human_free, task_x, task_y, sp
             if cls >= 0:
                 f_f = belief_ahead(onset, slope, weight, offset, floor, hours[b, ch],
                                    human_free[b, ch], now, b, ch, scratch)
-                p_ok = 0.5 + eta[b, ch] * f_f * lam[b, ch] * f_d[q, dd]
+                p_ok = scalar.human_success(eta[b, ch], lam[b, ch], f_f, 1.0, f_d[q, dd])
             counted = in_time and done <= horizon
             expected[b, bp] = scalar.expected_points(points[b, bp], p_ok) if counted else 0.0
             arrival[b, bp] = arr if in_time else INF

@@ -1,59 +1,54 @@
 """The model's formulas for one value at a time, compiled with numba, for compiled loops that
-score candidates one by one (the ATA-HRL decoder's POI step). Each is the formula of its array
-twin, written in the same order of operations, so the two give the same bits
-(tests/test_compiled_steps.py): `workload` is `ata.model.tables.workload`, `expected_points`
-`tables.expected_points`, `human_net`, `option_value` and `rate` those of
-`ata.model.greedy_score`, `cum_at` and `utilisation` `ata.model.load.HumanLoad`'s grid read,
-`book` its booking.
+score candidates one by one (the ATA-HRL decoder's steps, the projection's loop).
+
+Most are not written here: `workload`, `human_success` and `expected_points` are
+`ata.model.tables`' own functions, `individual` (a human's fatigue curve) is
+`ata.model.fatigue`'s, `human_net`, `option_value` and `rate` are `ata.model.greedy_score`'s,
+each compiled as it stands (`ata.model.generic` says how one function serves arrays and
+numbers; this module registers the compiled form of its helpers). Written here is the compiled
+form of `ata.model.load.HumanLoad`'s grid, which its arrays read in bulk: `cum_at` and
+`utilisation` its grid read, `book` its booking, each in the order of operations of its array
+twin (tests/test_compiled_steps.py).
 
 `jit` is the host's way of compiling (`ata.model.compiling`): cached, and compiled again when
-this module changes; the first process to call a function compiles it (a few seconds).
+a file of `ata.model` changes; the first process to call a function compiles it (a few seconds).
 """
 
 from __future__ import annotations
 
 import numpy as np
+from numba.core import types
+from numba.extending import overload
 
+from ata.model import fatigue, generic, greedy_score, tables
 from ata.model.compiling import jit
-from ata.model.tables import WORKLOAD_HIGH, WORKLOAD_LOW, WORKLOAD_PLATEAU
 
-__all__ = ["jit", "workload", "expected_points", "human_net", "option_value", "rate", "cum_at",
-           "utilisation", "book"]
-
-
-_LO, _HI = WORKLOAD_PLATEAU
-_A, _B, _C = WORKLOAD_LOW
-_A2, _B2, _C2 = WORKLOAD_HIGH
+__all__ = ["jit", "workload", "human_success", "expected_points", "individual", "human_net",
+           "option_value", "rate", "cum_at", "utilisation", "book"]
 
 
-@jit
-def workload(u: float) -> float:
-    if u < _LO:
-        return _A * u * u + _B * u + _C
-    if u < _HI:
-        return 1.0
-    return _A2 * u * u + _B2 * u - _C2
+# the compiled form of `ata.model.generic` on numbers, registered before anything compiles
+@overload(generic.select)
+def _select(cond, a, b):
+    if isinstance(cond, types.Boolean):
+        return lambda cond, a, b: a if cond else b
+    return None
 
 
-@jit
-def expected_points(points: float, p_success: float) -> float:
-    return points * (2.0 * p_success - 1.0)
+@overload(generic.as_float)
+def _as_float(x):
+    if isinstance(x, (types.Float, types.Integer, types.Boolean)):
+        return lambda x: float(x)
+    return None
 
 
-@jit
-def human_net(expected: float, t_bar: float, delay: float, price: float) -> float:
-    return expected - price * (t_bar + delay)
-
-
-@jit
-def option_value(best_net: float, finish: float, horizon: float, onboard: float) -> float:
-    v = best_net if finish <= horizon else 0.0
-    return v if v >= onboard or np.isnan(v) else onboard
-
-
-@jit
-def rate(value: float, robot_s: float, offset_s: float) -> float:
-    return value / (robot_s + offset_s)
+workload = jit(tables.workload)
+human_success = jit(tables.human_success)
+expected_points = jit(tables.expected_points)
+individual = jit(fatigue.individual)
+human_net = jit(greedy_score.human_net)
+option_value = jit(greedy_score.option_value)
+rate = jit(greedy_score.rate)
 
 
 @jit

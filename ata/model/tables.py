@@ -1,5 +1,7 @@
 """The tables and formulas of the model, as arrays and vectorised functions, for the team models
-and the policies alike.
+and the policies alike. Each formula is written once: `workload`, `human_success` and
+`expected_points` use only arithmetic and `ata.model.generic`, so the same functions run on
+arrays here and, compiled (`ata.model.scalar`), on numbers in the compiled loops.
 
 Codes: kind 0 = air, 1 = ground; difficulty 0 = low, 1 = medium, 2 = high; image quality
 0 = Low, 1 = Medium, 2 = Upper-Medium, 3 = High; robot type 0 = UAV, 1 = UGV; skill band
@@ -10,7 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ata.model import fatigue as _fatigue
 from ata.model import team
+from ata.model.generic import as_float, select
 from ata.model.team import FATIGUE_FLOOR
 
 AIR, GROUND = 0, 1
@@ -60,9 +64,9 @@ F_D = decision_difficulty(T_BAR)
 
 
 def fatigue(hours: np.ndarray, floor: float = FATIGUE_FLOOR) -> np.ndarray:
-    """F_f: 1 below one working hour, then 1.3 - 0.3 T, not below ``floor``."""
-    h = np.asarray(hours, dtype=float)
-    return np.where(h < 1.0, 1.0, np.maximum(floor, 1.3 - 0.3 * h))
+    """F_f of the population line: 1 below one working hour, then 1.3 - 0.3 T, not below
+    ``floor`` (`ata.model.fatigue.individual` at the population's onset and slope)."""
+    return _fatigue.individual(hours, _fatigue.ONSET_H, _fatigue.SLOPE_PER_H, floor)
 
 
 WORKLOAD_PLATEAU = (0.45, 0.65)
@@ -80,16 +84,21 @@ model's ``fatigued_share``)."""
 def workload(u: np.ndarray) -> np.ndarray:
     """F_w of utilisation u: rising quadratic, plateau at 1 on `WORKLOAD_PLATEAU`, falling
     quadratic."""
-    u = np.asarray(u, dtype=float)
+    u = as_float(u)
     (a, b, c), (a2, b2, c2) = WORKLOAD_LOW, WORKLOAD_HIGH
     low = a * u * u + b * u + c
     high = a2 * u * u + b2 * u - c2
-    return np.where(u < WORKLOAD_PLATEAU[0], low, np.where(u < WORKLOAD_PLATEAU[1], 1.0, high))
+    return select(u < WORKLOAD_PLATEAU[0], low, select(u < WORKLOAD_PLATEAU[1], 1.0, high))
 
 
 def human_success(eta: np.ndarray, lam: np.ndarray, f_f: np.ndarray, f_w: np.ndarray,
                   f_d: np.ndarray) -> np.ndarray:
-    """P_hc = 1/2 + eta * F_f * F_w * lambda * F_d."""
+    """P_hc = 1/2 + eta * F_f * F_w * lambda * F_d, multiplied in that order.
+
+    The one definition of P_hc. A caller that holds a product of some factors already (eta *
+    lambda, or eta * F_f * lambda) passes it as `eta` and 1.0 for each factor it holds: a
+    product with 1.0 is exact, so P_hc has the bits of that caller's order of multiplication.
+    """
     return 0.5 + eta * f_f * f_w * lam * f_d
 
 

@@ -178,7 +178,7 @@ def upper_bound(sim: SimState) -> np.ndarray:
     d = t.true_diff
     p_robot = tables.P_RC[q_best, d]
     eta_lam = (h.eta * h.lam).max(axis=1)                                  # (B,)
-    p_human = 0.5 + eta_lam[:, None] * tables.F_D[q_best, d]
+    p_human = tables.human_success(eta_lam[:, None], 1.0, 1.0, 1.0, tables.F_D[q_best, d])
     p_star = np.maximum(p_robot, p_human)
     return np.maximum(0.0, tables.expected_points(tables.POINTS[d], p_star)).sum(axis=1)
 

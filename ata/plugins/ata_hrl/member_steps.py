@@ -25,7 +25,7 @@ def greedy_human(e, q, d, pts, t_ref, human_free, eta_lam, fat_greedy, t_bar, f_
     tb, fd = t_bar[q, d], f_d[q, d]
     best_net, best_h = -INF, 0
     for h in range(H):
-        ps = 0.5 + eta_lam[e, h] * fat_greedy[e, h] * fd
+        ps = scalar.human_success(eta_lam[e, h], 1.0, fat_greedy[e, h], 1.0, fd)
         delay = max(human_free[e, h] - t_ref, 0.0)
         net = scalar.human_net(scalar.expected_points(pts, ps), tb, delay, price)
         if h == 0 or net > best_net or (np.isnan(net) and not np.isnan(best_net)):
@@ -169,10 +169,10 @@ def cls_step(p, r, n, robot_free, robot_xy, speed, tx, ty, robot_type, kind, dif
                                    window_s, begin)
             f_w = scalar.workload(u)
             f_f = fat_now[e, h]
-            ps = 0.5 + eta_lam[e, h] * f_f * f_w * fd
+            ps = scalar.human_success(eta_lam[e, h], 1.0, f_f, f_w, fd)
             ev_h = scalar.expected_points(pts, ps) if fin <= horizon else 0.0
             # greedy's net value of this human (F_w = 1, the fatigue at the free time)
-            pg = 0.5 + eta_lam[e, h] * fat_greedy[e, h] * fd
+            pg = scalar.human_success(eta_lam[e, h], 1.0, fat_greedy[e, h], 1.0, fd)
             net = scalar.human_net(scalar.expected_points(pts, pg), tb,
                                    max(free - t_ref, 0.0), price)
             net = net if fin <= horizon else 0.0

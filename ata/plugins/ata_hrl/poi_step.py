@@ -142,7 +142,8 @@ def poi_step(left, robot_free, robot_done, robot_xy, speed, tx, ty, robot_type, 
                         base = (e * H + h) * n_edges
                         u = scalar.utilisation(cum, base, last_edge, n_edges, bin_s,
                                                window_s, begin)
-                        ps = 0.5 + eta_lam[e, h] * fat_now[e, h] * scalar.workload(u) * fd
+                        ps = scalar.human_success(eta_lam[e, h], 1.0, fat_now[e, h],
+                                                  scalar.workload(u), fd)
                         ev = scalar.expected_points(pts, ps) if fin <= horizon else -INF
                         top = max(top, ev)
                     hum[o] = max(top, -max_points)
