@@ -15,7 +15,7 @@ import ata
 import decoder_reference as ref
 from ata.core.kernel import Simulation
 from ata.session import load_session
-from ata.model import greedy_score, scalar, tables
+from ata.model import fatigue, greedy_score, scalar, tables
 from ata.plugins.ata_hrl.decoder import Decoder
 
 
@@ -37,6 +37,19 @@ def test_the_scalar_formulas_give_their_array_twins_bits():
     secs = np.concatenate([rng.uniform(0, 500, 499), [np.inf]])
     assert np.array_equal(greedy_score.rate(ev, secs, 30.0),
                           [scalar.rate(a, b, 30.0) for a, b in zip(ev, secs)])
+    cost = np.where(rng.uniform(0, 1, 500) < 0.5, 0.0, rng.uniform(0, 10, 500))
+    assert np.array_equal(greedy_score.option_rate(ev, fin, 1000.0, onboard, cost, secs, 30.0),
+                          [scalar.option_rate(a, b, 1000.0, c, d, e, 30.0)
+                           for a, b, c, d, e in zip(ev, fin, onboard, cost, secs)])
+    eta, lam, f_f, f_w, f_d = (rng.uniform(0, 1, 500) for _ in range(5))
+    assert np.array_equal(tables.human_success(eta, lam, f_f, f_w, f_d),
+                          [scalar.human_success(*x) for x in zip(eta, lam, f_f, f_w, f_d)])
+    assert np.array_equal(greedy_score.human_gain(eta, lam, f_f, f_d, pts),
+                          [scalar.human_gain(*x) for x in zip(eta, lam, f_f, f_d, pts)])
+    hours = np.concatenate([rng.uniform(0, 4, 497), [1.0, 0.0, 10.0]])
+    onset, slope = rng.uniform(0.5, 1.5, 500), rng.uniform(0.1, 0.5, 500)
+    assert np.array_equal(fatigue.individual(hours, onset, slope, 0.4),
+                          [scalar.individual(*x, 0.4) for x in zip(hours, onset, slope)])
 
 
 def test_the_load_formulas_give_humanload_bits():

@@ -127,14 +127,6 @@ class GreedyPlanner:
         return out, np.where(replanned[..., None], attrs, planned_attrs)
 
 
-def _human_gain(skill: np.ndarray, f_d: np.ndarray, points12: np.ndarray) -> np.ndarray:
-    """Expected points of a human classification for each of the 12 (quality, difficulty)
-    combinations (`f_d` and `points12` the F_D table and the points of each, raveled), for
-    humans whose eta * F_f * lambda is `skill` (any shape; the combinations a new last axis)."""
-    return tables.expected_points(points12, tables.human_success(skill[..., None], 1.0, 1.0, 1.0,
-                                                                  f_d))
-
-
 def peak_bytes(batch: int, humans: int, robots: int, tasks: int) -> int:
     """An estimate of the planner's peak working memory for a batch of `batch` scenarios, in
     bytes: linear in the POIs, its (batch, robots or humans, POIs) arrays dominate (those of
@@ -232,7 +224,7 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
     # picked per step by the chosen robot's type
     combos = [(rt, nc) for rt in (tables.UAV, tables.UGV) for nc in (1, 2)]
     qd_base = np.stack([quality[rt * 6 + kind3 + nc] * 3 + diff for rt, nc in combos], 1)
-    ev_onboard = np.stack([points * (2 * p_rc[qd_base[:, i]] - 1)
+    ev_onboard = np.stack([tables.expected_points(points, p_rc[qd_base[:, i]])
                            for i in range(len(combos))], axis=1)                # (B, 4, P)
     tbar_task = np.stack([t_bar[qd_base[:, i]] for i in range(len(combos))], axis=1)
     n_opt = 2 if (s.human_navigators and H > 0) else 1
@@ -248,7 +240,7 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
     cols = np.broadcast_to(np.arange(P), (B, P))
     n_left = remaining.sum(axis=1)
     A, C = B, P
-    gain = None      # (H, A, 12) each human's expected points per combination (`_human_gain`)
+    gain = None      # (H, A, 12) each human's expected points per combination (human_gain)
     touched_b = touched_h = np.zeros(0, dtype=np.int64)   # humans whose time changed since
     for step in range(P):
         active = (n_left > 0) & np.isfinite(robot_free.min(axis=1))
@@ -299,11 +291,13 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
         # same numbers as over all)
         if gain is None:
             f_f = belief.ahead(hours, human_free, now)
-            gain = _human_gain((eta * f_f * lam).T, f_d, points12)
+            gain = greedy_score.human_gain(eta.T[..., None], lam.T[..., None],
+                                           f_f.T[..., None], f_d, points12)
         elif touched_b.size:
             tb, th = touched_b, touched_h
             f_f = belief.ahead(hours[tb, th], human_free[tb, th], now, rows=(tb, th))
-            gain[th, tb] = _human_gain(eta[tb, th] * f_f * lam[tb, th], f_d, points12)
+            gain[th, tb] = greedy_score.human_gain(eta[tb, th, None], lam[tb, th, None],
+                                                   f_f[:, None], f_d, points12)
         delay = np.maximum(human_free - t_free[:, None], 0.0).T[:, :, None]
         net_h = greedy_score.human_net(gain, t_bar, delay, s.human_time_cost)
         best = np.maximum.reduce(net_h, axis=0)                                 # (A, 12)
@@ -330,12 +324,13 @@ def _plan(ctx: DecisionContext, s: GreedySettings, open_: np.ndarray,
         combo = combo0[:, None] + options                                      # (A, O)
         qd = qd_flat[b_all[:, None], combo]
         finish = np.maximum(arrival, best_free[qd]) + tbar_task[b_all[:, None], combo]
-        value = greedy_score.option_value(best_net[qd], finish, horizon,
-                                          ev_onboard[b_all[:, None], combo])
+        cost = np.zeros((A, n_opt, C))
         if n_opt == 2:
-            value[:, 1] -= nav_cost
+            cost[:, 1] = nav_cost
         with np.errstate(invalid="ignore"):       # inf - inf for robots that are done
-            rate = greedy_score.rate(value, arrival - t_free[:, None, None], s.rate_offset_s)
+            rate = greedy_score.option_rate(best_net[qd], finish, horizon,
+                                            ev_onboard[b_all[:, None], combo], cost,
+                                            arrival - t_free[:, None, None], s.rate_offset_s)
         score = np.where(remaining[:, None, :] & (arrival <= horizon), rate,
                          -np.inf).reshape(A, -1)                                # (A, O * C)
         flat = score.argmax(axis=1)

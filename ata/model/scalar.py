@@ -3,9 +3,11 @@ score candidates one by one (the ATA-HRL decoder's steps, the projection's loop)
 
 Most are not written here: `workload`, `human_success` and `expected_points` are
 `ata.model.tables`' own functions, `individual` (a human's fatigue curve) is
-`ata.model.fatigue`'s, `human_net`, `option_value` and `rate` are `ata.model.greedy_score`'s,
-each compiled as it stands (`ata.model.generic` says how one function serves arrays and
-numbers; this module registers the compiled form of its helpers). Written here is the compiled
+`ata.model.fatigue`'s, `human_gain`, `human_net`, `option_value`, `rate` and `option_rate` are
+`ata.model.greedy_score`'s, each compiled as it stands (`ata.model.generic` says how one
+function serves arrays and numbers; this module registers the compiled form of its helpers, and
+makes each shared formula callable from compiled code, so that one formula may call another).
+Written here is the compiled
 form of `ata.model.load.HumanLoad`'s grid, which its arrays read in bulk: `cum_at` and
 `utilisation` its grid read, `book` its booking, each in the order of operations of its array
 twin (tests/test_compiled_steps.py).
@@ -18,13 +20,13 @@ from __future__ import annotations
 
 import numpy as np
 from numba.core import types
-from numba.extending import overload
+from numba.extending import overload, register_jitable
 
 from ata.model import fatigue, generic, greedy_score, tables
 from ata.model.compiling import jit
 
-__all__ = ["jit", "workload", "human_success", "expected_points", "individual", "human_net",
-           "option_value", "rate", "cum_at", "utilisation", "book"]
+__all__ = ["jit", "workload", "human_success", "expected_points", "individual", "human_gain",
+           "human_net", "option_value", "rate", "option_rate", "cum_at", "utilisation", "book"]
 
 
 # the compiled form of `ata.model.generic` on numbers, registered before anything compiles
@@ -42,13 +44,22 @@ def _as_float(x):
     return None
 
 
+_SHARED = (tables.workload, tables.human_success, tables.expected_points, fatigue.individual,
+           greedy_score.human_gain, greedy_score.human_net, greedy_score.option_value,
+           greedy_score.rate, greedy_score.option_rate)
+# each callable from compiled code as it stands, so that one calling another compiles too
+for _fn in _SHARED:
+    register_jitable(nogil=True, error_model="numpy")(_fn)
+
 workload = jit(tables.workload)
 human_success = jit(tables.human_success)
 expected_points = jit(tables.expected_points)
 individual = jit(fatigue.individual)
+human_gain = jit(greedy_score.human_gain)
 human_net = jit(greedy_score.human_net)
 option_value = jit(greedy_score.option_value)
 rate = jit(greedy_score.rate)
+option_rate = jit(greedy_score.option_rate)
 
 
 @jit

@@ -25,9 +25,9 @@ def greedy_human(e, q, d, pts, t_ref, human_free, eta_lam, fat_greedy, t_bar, f_
     tb, fd = t_bar[q, d], f_d[q, d]
     best_net, best_h = -INF, 0
     for h in range(H):
-        ps = scalar.human_success(eta_lam[e, h], 1.0, fat_greedy[e, h], 1.0, fd)
         delay = max(human_free[e, h] - t_ref, 0.0)
-        net = scalar.human_net(scalar.expected_points(pts, ps), tb, delay, price)
+        net = scalar.human_net(scalar.human_gain(eta_lam[e, h], 1.0, fat_greedy[e, h], fd, pts),
+                               tb, delay, price)
         if h == 0 or net > best_net or (np.isnan(net) and not np.isnan(best_net)):
             best_net, best_h = net, h
     return best_h, best_net
@@ -101,9 +101,8 @@ def nav_step(p, r, robot_free, robot_xy, speed, tx, ty, robot_type, kind, diff, 
             ev_on = scalar.expected_points(pts, p_rc[q, d])
             best_net, best_fin = _greedy_best(e, q, d, pts, arrive, t_r, human_free, eta_lam,
                                               fat_greedy, t_bar, f_d, price)
-            value = scalar.option_value(best_net, best_fin, horizon, ev_on) \
-                - (price * leg if human else 0.0)
-            rt = scalar.rate(value, arrive - t_r, offset_s)
+            rt = scalar.option_rate(best_net, best_fin, horizon, ev_on,
+                                    price * leg if human else 0.0, arrive - t_r, offset_s)
             ok = (not human or high[e, j - 1]) and arrive <= horizon
             mask[e, j] = ok or not human
             util = 0.0
@@ -172,9 +171,8 @@ def cls_step(p, r, n, robot_free, robot_xy, speed, tx, ty, robot_type, kind, dif
             ps = scalar.human_success(eta_lam[e, h], 1.0, f_f, f_w, fd)
             ev_h = scalar.expected_points(pts, ps) if fin <= horizon else 0.0
             # greedy's net value of this human (F_w = 1, the fatigue at the free time)
-            pg = scalar.human_success(eta_lam[e, h], 1.0, fat_greedy[e, h], 1.0, fd)
-            net = scalar.human_net(scalar.expected_points(pts, pg), tb,
-                                   max(free - t_ref, 0.0), price)
+            gain = scalar.human_gain(eta_lam[e, h], 1.0, fat_greedy[e, h], fd, pts)
+            net = scalar.human_net(gain, tb, max(free - t_ref, 0.0), price)
             net = net if fin <= horizon else 0.0
             rebrief = 0.0
             if has_prev and rebrief_on and prev_cls[e, pe] != h and not touched[e, h]:

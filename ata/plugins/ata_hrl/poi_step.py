@@ -121,9 +121,8 @@ def poi_step(left, robot_free, robot_done, robot_xy, speed, tx, ty, robot_type, 
                         memo_pts[q, d] = pts
                     best_net = memo_net[q, d]
                     best_fin = max(at, human_free[e, memo_h[q, d]]) + tb
-                    value = scalar.option_value(best_net, best_fin, horizon,
-                                                ev_on[o]) - cost[o]
-                    rt = scalar.rate(value, arr_o[o] - t_ff, offset_s)
+                    rt = scalar.option_rate(best_net, best_fin, horizon, ev_on[o], cost[o],
+                                            arr_o[o] - t_ff, offset_s)
                     rates[o] = rt if arr_o[o] <= horizon else -INF
                 rate_ff = max(rates[0], rates[1])
                 if stage == 0:
