@@ -12,6 +12,7 @@ import numpy as np
 
 from ata.model import scalar
 from ata.model.scalar import jit
+from ata.plugins.ata_hrl import inputs as c
 
 INF = math.inf
 
@@ -63,16 +64,16 @@ def robot_step(p, robot_free, robot_done, robot_xy, speed, tx, ty, robot_type, k
             is_ff = 1.0 if r == r_ff[e] else 0.0
             free = horizon if robot_done[e, r] else robot_free[e, r]
             f = feats[e, r]
-            f[0] = min(max((arr - now) / horizon, 0.0), 2.0)
-            f[1] = min(max((free - now) / horizon, 0.0), 2.0)
-            f[2] = travel / horizon
-            f[3] = ev / max_points
-            f[4] = is_ff
-            f[5] = n_assigned[e, r] / max(n_pois, 1)
-            f[6] = 1.0 if has_prev and prev_robot[e, pe] == r else 0.0
-            f[7] = robot_type[e, r]
+            f[c.ROBOT_ARRIVE] = min(max((arr - now) / horizon, 0.0), 2.0)
+            f[c.ROBOT_FREE] = min(max((free - now) / horizon, 0.0), 2.0)
+            f[c.ROBOT_TRAVEL] = travel / horizon
+            f[c.ROBOT_ONBOARD] = ev / max_points
+            f[c.ROBOT_FREE_FIRST] = is_ff
+            f[c.ROBOT_ASSIGNED] = n_assigned[e, r] / max(n_pois, 1)
+            f[c.ROBOT_HOLDS] = 1.0 if has_prev and prev_robot[e, pe] == r else 0.0
+            f[c.ROBOT_TYPE] = robot_type[e, r]
             for j in range(4):
-                f[8 + j] = 1.0 if q == j else 0.0
+                f[c.ROBOT_QUALITY + j] = 1.0 if q == j else 0.0
             prior[e, r] = is_ff
 
 
@@ -110,16 +111,16 @@ def nav_step(p, r, robot_free, robot_xy, speed, tx, ty, robot_type, kind, diff, 
                 util = scalar.utilisation(cum, (e * H + j - 1) * n_edges, last_edge, n_edges,
                                           bin_s, window_s, free)
             f = feats[e, j]
-            f[0] = min(max((arrive - now) / horizon, 0.0), 2.0)
-            f[1] = min(max((free - t_r) / horizon, 0.0), 2.0)
-            f[2] = leg / horizon if human else 0.0
-            f[3] = ev_on / max_points
-            f[4] = min(max(rt * 20, -2.0), 2.0)
-            f[5] = util
-            f[6] = 1.0 if has_prev and prev_nav[e, pe] + 1 == j else 0.0
-            f[7] = 1.0 if human else 0.0
+            f[c.NAV_ARRIVE] = min(max((arrive - now) / horizon, 0.0), 2.0)
+            f[c.NAV_WAIT] = min(max((free - t_r) / horizon, 0.0), 2.0)
+            f[c.NAV_LEG] = leg / horizon if human else 0.0
+            f[c.NAV_ONBOARD] = ev_on / max_points
+            f[c.NAV_RATE] = min(max(rt * 20, -2.0), 2.0)
+            f[c.NAV_UTILISATION] = util
+            f[c.NAV_HOLDS] = 1.0 if has_prev and prev_nav[e, pe] + 1 == j else 0.0
+            f[c.NAV_HUMAN] = 1.0 if human else 0.0
             for i in range(4):
-                f[8 + i] = 1.0 if q == i else 0.0
+                f[c.NAV_QUALITY + i] = 1.0 if q == i else 0.0
             prior[e, j] = rt if mask[e, j] else -1.0
 
 
@@ -149,17 +150,17 @@ def cls_step(p, r, n, robot_free, robot_xy, speed, tx, ty, robot_type, kind, dif
         t_ref = robot_free[e, re]
         prior[e, 0] = ev_on
         f = feats[e, 0]
-        f[0] = ev_on / max_points
-        f[1] = p_on
-        f[2] = min(max((arrive - now) / horizon, 0.0), 2.0)
-        f[3] = 0.0
-        f[4] = 0.0
-        f[5] = 1.0
-        f[6] = 1.0
-        f[7] = 0.0
-        f[8] = ev_on / max_points
-        f[9] = 0.0
-        f[10] = 0.0
+        f[c.CLS_POINTS] = ev_on / max_points
+        f[c.CLS_SUCCESS] = p_on
+        f[c.CLS_FINISH] = min(max((arrive - now) / horizon, 0.0), 2.0)
+        f[c.CLS_WAIT] = 0.0
+        f[c.CLS_UTILISATION] = 0.0
+        f[c.CLS_WORKLOAD] = 1.0
+        f[c.CLS_FATIGUE] = 1.0
+        f[c.CLS_ITEM] = 0.0
+        f[c.CLS_NET] = ev_on / max_points
+        f[c.CLS_REBRIEF] = 0.0
+        f[c.CLS_HUMAN] = 0.0
         for h in range(H):
             free = human_free[e, h]
             begin = max(arrive, free)
@@ -179,19 +180,19 @@ def cls_step(p, r, n, robot_free, robot_xy, speed, tx, ty, robot_type, kind, dif
                 rebrief = 1.0
             prior[e, h + 1] = net
             f = feats[e, h + 1]
-            f[0] = ev_h / max_points
-            f[1] = ps
-            f[2] = min(max((fin - now) / horizon, 0.0), 2.0)
-            f[3] = min(max((begin - arrive) / horizon, 0.0), 2.0)
-            f[4] = u
-            f[5] = f_w
-            f[6] = f_f
-            f[7] = tb / horizon
-            f[8] = net / max_points
-            f[9] = rebrief
-            f[10] = 1.0
+            f[c.CLS_POINTS] = ev_h / max_points
+            f[c.CLS_SUCCESS] = ps
+            f[c.CLS_FINISH] = min(max((fin - now) / horizon, 0.0), 2.0)
+            f[c.CLS_WAIT] = min(max((begin - arrive) / horizon, 0.0), 2.0)
+            f[c.CLS_UTILISATION] = u
+            f[c.CLS_WORKLOAD] = f_w
+            f[c.CLS_FATIGUE] = f_f
+            f[c.CLS_ITEM] = tb / horizon
+            f[c.CLS_NET] = net / max_points
+            f[c.CLS_REBRIEF] = rebrief
+            f[c.CLS_HUMAN] = 1.0
         for j in range(H + 1):
             f = feats[e, j]
-            f[11] = 1.0 if has_prev and prev_cls[e, pe] + 1 == j else 0.0
-            f[12] = 1.0 if q == 0 else 0.0
-            f[13] = 1.0 if q == 1 else 0.0
+            f[c.CLS_HOLDS] = 1.0 if has_prev and prev_cls[e, pe] + 1 == j else 0.0
+            f[c.CLS_QUALITY] = 1.0 if q == 0 else 0.0
+            f[c.CLS_QUALITY + 1] = 1.0 if q == 1 else 0.0

@@ -12,6 +12,7 @@ import numpy as np
 
 from ata.model import scalar
 from ata.model.scalar import jit
+from ata.plugins.ata_hrl import inputs as c
 from ata.plugins.ata_hrl.member_steps import greedy_human
 
 INF = math.inf
@@ -153,23 +154,23 @@ def poi_step(left, robot_free, robot_done, robot_xy, speed, tx, ty, robot_type, 
                         other_arr = min(other_arr, arr[r])
                         ev_all = max(ev_all, ev_onboard[e, r, p])
                 f = feats[e, p]
-                f[0] = min(max((arr_o[0] - now) / horizon, 0.0), 2.0)
-                f[1] = min(max((arr_o[1] - now) / horizon, 0.0), 2.0)
-                f[2] = ev_on[0] / max_points
-                f[3] = ev_on[1] / max_points
-                f[4] = hum[0] / max_points
-                f[5] = hum[1] / max_points
+                f[c.POI_ARRIVE] = min(max((arr_o[0] - now) / horizon, 0.0), 2.0)
+                f[c.POI_ARRIVE + 1] = min(max((arr_o[1] - now) / horizon, 0.0), 2.0)
+                f[c.POI_ONBOARD] = ev_on[0] / max_points
+                f[c.POI_ONBOARD + 1] = ev_on[1] / max_points
+                f[c.POI_HUMAN] = hum[0] / max_points
+                f[c.POI_HUMAN + 1] = hum[1] / max_points
                 for o in range(2):
                     v = rates[o] if np.isfinite(rates[o]) else -0.1
-                    f[6 + o] = min(max(v * 20, -2.0), 2.0)
-                f[8] = min(max((other_arr - arr_o[0]) / horizon, -2.0), 2.0)
-                f[9] = (ev_all - ev_on[0]) / max_points
-                f[10] = pts / max_points
-                f[11] = k
-                f[12] = d / 2.0
-                f[13] = min(max((horizon - t_ff) / horizon, 0.0), 1.0)
-                f[14] = n_left / max(P, 1)
+                    f[c.POI_RATE + o] = min(max(v * 20, -2.0), 2.0)
+                f[c.POI_SOONER] = min(max((other_arr - arr_o[0]) / horizon, -2.0), 2.0)
+                f[c.POI_BETTER] = (ev_all - ev_on[0]) / max_points
+                f[c.POI_POINTS] = pts / max_points
+                f[c.POI_KIND] = k
+                f[c.POI_DIFFICULTY] = d / 2.0
+                f[c.POI_TIME_LEFT] = min(max((horizon - t_ff) / horizon, 0.0), 1.0)
+                f[c.POI_SHARE_LEFT] = n_left / max(P, 1)
                 if has_prev:
-                    f[15] = 1.0 if prev_robot[e, p] == rf else 0.0
-                    f[16] = 1.0 if prev_valid[e, p] else 0.0
-                    f[17] = 1.0 if prev_cls[e, p] >= 0 else 0.0
+                    f[c.POI_SAME_ROBOT] = 1.0 if prev_robot[e, p] == rf else 0.0
+                    f[c.POI_VALID] = 1.0 if prev_valid[e, p] else 0.0
+                    f[c.POI_HUMAN_CLASSIFIES] = 1.0 if prev_cls[e, p] >= 0 else 0.0
