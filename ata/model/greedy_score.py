@@ -1,9 +1,10 @@
 """Greedy's score of a candidate, written once: what a human classification is expected to earn
-and what it is worth net of the human's time, what an option (a robot, with or without a navigator, at a POI) is worth, and the
-rate of that worth per robot second. The greedy planner (`ata.model.greedy_planner`) ranks its
-candidates by these, and learned policies that build on greedy use them as their prior. Each is
-one function for arrays and numbers (`ata.model.generic`): the compiled loops run these same
-functions (`ata.model.scalar`)."""
+and what it is worth net of the human's time, what an option (a robot, with or without a
+navigator, at a POI) is worth, and the rate of that worth per robot second. The greedy planner
+(`ata.model.greedy_planner`) ranks its candidates by these, and learned policies that build on
+greedy use them as their prior (the ATA-HRL decoder's compiled steps). Each is one function for
+arrays and numbers (`ata.model.generic`): the compiled loops run these same functions
+(`ata.model.scalar`)."""
 
 from __future__ import annotations
 

@@ -250,8 +250,8 @@ def project(start: PlanStart, alloc: Allocation, tasks: np.ndarray | None = None
                  np.ascontiguousarray(start.task_xy[..., 1]), speed, quality, alloc.navigator,
                  alloc.classifier, start.diff, start.points, start.hours, start.eta, start.lam,
                  belief.onset, belief.slope, belief.weight, belief.offset, float(belief.floor),
-                 float(start.now), float(start.horizon), float(start.capture_s), tables.P_RC,
-                 tables.T_BAR, tables.F_D, busy, expected, arrival, finish)
+                 float(start.now), float(start.horizon), float(start.capture_s), tables.TABLES,
+                 busy, expected, arrival, finish)
     return Projection(value=expected.sum(axis=1), human_busy_s=busy.sum(axis=1),
                       expected=expected, arrival=arrival, finish=finish,
                       robot_free=robot_free, robot_xy=np.stack([rx, ry], axis=-1),

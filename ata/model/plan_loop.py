@@ -95,7 +95,7 @@ def belief_ahead(onset, slope, weight, offset, floor, hours, free, now, b, h, sc
 @jit
 def project_loop(left, owner, robot_free, rx, ry, human_free, task_x, task_y, speed, quality,
                  navigator, classifier, diff, points, hours, eta, lam, onset, slope, weight,
-                 offset, floor, now, horizon, capture_s, p_rc, t_bar, f_d, busy, expected,
+                 offset, floor, now, horizon, capture_s, tab, busy, expected,
                  arrival, finish):
     """Project every scenario's allocation (`ata.model.plan.project`); robot_free, rx, ry and
     human_free are updated in place, busy, expected, arrival and finish filled (zeros, zeros,
@@ -141,13 +141,13 @@ def project_loop(left, owner, robot_free, rx, ry, human_free, task_x, task_y, sp
             by_human = cls >= 0 and in_time
             ch = max(cls, 0)
             begin = max(arr, human_free[b, ch])
-            tb = t_bar[q, dd]
+            tb = tab.t_bar[q, dd]
             done = begin + tb if by_human else arr
-            p_ok = p_rc[q, dd]
+            p_ok = tab.p_rc[q, dd]
             if cls >= 0:
                 f_f = belief_ahead(onset, slope, weight, offset, floor, hours[b, ch],
                                    human_free[b, ch], now, b, ch, scratch)
-                p_ok = scalar.human_success(eta[b, ch], lam[b, ch], f_f, 1.0, f_d[q, dd])
+                p_ok = scalar.human_success(eta[b, ch], lam[b, ch], f_f, 1.0, tab.f_d[q, dd])
             counted = in_time and done <= horizon
             expected[b, bp] = scalar.expected_points(points[b, bp], p_ok) if counted else 0.0
             arrival[b, bp] = arr if in_time else INF

@@ -10,6 +10,8 @@ Codes: kind 0 = air, 1 = ground; difficulty 0 = low, 1 = medium, 2 = high; image
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ata.model import fatigue as _fatigue
@@ -61,6 +63,21 @@ def decision_difficulty(t_bar: np.ndarray) -> np.ndarray:
 
 F_D = decision_difficulty(T_BAR)
 """F_D[quality, difficulty]."""
+
+
+class Tables(NamedTuple):
+    """The tables a compiled loop reads, as one record: a loop takes `TABLES` and reads each
+    table by its name (numba reads a named tuple's fields by name)."""
+
+    quality: np.ndarray
+    p_rc: np.ndarray
+    t_bar: np.ndarray
+    f_d: np.ndarray
+    skill_speed: np.ndarray
+
+
+TABLES = Tables(QUALITY, P_RC, T_BAR, F_D, SKILL_SPEED)
+"""`QUALITY`, `P_RC`, `T_BAR`, `F_D` and `SKILL_SPEED` as one `Tables` record."""
 
 
 def fatigue(hours: np.ndarray, floor: float = FATIGUE_FLOOR) -> np.ndarray:

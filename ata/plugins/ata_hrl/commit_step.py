@@ -29,8 +29,7 @@ def _rebrief(e, old, new, now, rebrief_s, touched, cum, booked, free, edges):
 @jit
 def commit_step(active, p, r, n, c, robot_free, robot_xy, n_assigned, robot, nav, cls, left,
                 touched, prev_nav, prev_cls, charge, now, rebrief_s, capture_s, speed, skill,
-                robot_type, kind, diff, task_xy, skill_speed, quality, t_bar, cum, booked,
-                free, edges):
+                robot_type, kind, diff, task_xy, tab, cum, booked, free, edges):
     """Commit (p, r, n, c) in every active episode; whether anyone's work was booked."""
     booked_any = False
     for e in range(active.shape[0]):
@@ -44,9 +43,9 @@ def commit_step(active, p, r, n, c, robot_free, robot_xy, n_assigned, robot, nav
                                    booked, free, edges)
         # the route: when the robot sets off (its navigator free), its travel, the quality
         nav_class = skill[e, ne] if ne >= 0 else 1
-        v = speed[e, re] * (skill_speed[nav_class] if ne >= 0 else 1.0)
+        v = speed[e, re] * (tab.skill_speed[nav_class] if ne >= 0 else 1.0)
         depart = max(robot_free[e, re], free[e, ne]) if ne >= 0 else robot_free[e, re]
-        q = quality[robot_type[e, re], kind[e, pe], nav_class]
+        q = tab.quality[robot_type[e, re], kind[e, pe], nav_class]
         gx = task_xy[e, pe, 0] - robot_xy[e, re, 0]
         gy = task_xy[e, pe, 1] - robot_xy[e, re, 1]
         travel = math.sqrt(gx * gx + gy * gy) / max(v, 1e-9)
@@ -57,7 +56,8 @@ def commit_step(active, p, r, n, c, robot_free, robot_xy, n_assigned, robot, nav
             booked_any = True
         if ce >= 0:
             begin = max(arrive, free[e, ce])
-            scalar.book(cum, booked, free, edges, e, ce, begin, begin + t_bar[q, diff[e, pe]])
+            scalar.book(cum, booked, free, edges, e, ce, begin,
+                        begin + tab.t_bar[q, diff[e, pe]])
             booked_any = True
         robot_free[e, re] = arrive
         robot_xy[e, re, 0] = task_xy[e, pe, 0]

@@ -215,8 +215,7 @@ class Decoder:
                  self._dummy if prev is None else prev.classifier, self.prev_valid,
                  float(self.now), float(self.horizon), float(self.capture_s), s.window_s,
                  s.human_time_cost, s.rate_offset_s, float(tables.SKILL_SPEED[2]), SHORTLIST,
-                 MAX_POINTS, tables.QUALITY, tables.P_RC, tables.T_BAR, tables.F_D, feats,
-                 mask, prior, self.r_ff)
+                 MAX_POINTS, tables.TABLES, feats, mask, prior, self.r_ff)
         return StepInputs(feats, mask, prior, mask.any(axis=1))
 
     def robot_inputs(self, p: np.ndarray) -> StepInputs:
@@ -233,7 +232,7 @@ class Decoder:
                    self.ty, st.robot_type, st.kind, st.diff, self.points, self.r_ff,
                    self.n_assigned, prev is not None, self._dummy if prev is None else prev.robot,
                    self.P, float(self.now), float(self.horizon), float(self.capture_s),
-                   MAX_POINTS, tables.QUALITY, tables.P_RC, feats, mask, prior)
+                   MAX_POINTS, tables.TABLES, feats, mask, prior)
         return StepInputs(feats, mask, prior, mask.any(1))
 
     def nav_inputs(self, p: np.ndarray, r: np.ndarray) -> StepInputs:
@@ -253,8 +252,7 @@ class Decoder:
                  load.edges.size, float(load.edges[-1]), BIN_S, prev is not None,
                  self._dummy if prev is None else prev.navigator, float(self.now),
                  float(self.horizon), float(self.capture_s), s.window_s, s.human_time_cost,
-                 s.rate_offset_s, tables.SKILL_SPEED, MAX_POINTS, tables.QUALITY, tables.P_RC,
-                 tables.T_BAR, tables.F_D, feats, mask, prior)
+                 s.rate_offset_s, MAX_POINTS, tables.TABLES, feats, mask, prior)
         return StepInputs(feats, mask, prior, np.ones(E, bool))
 
     def cls_inputs(self, p: np.ndarray, r: np.ndarray, n: np.ndarray) -> StepInputs:
@@ -275,8 +273,7 @@ class Decoder:
                  load.cum.reshape(-1), load.edges.size, float(load.edges[-1]), BIN_S,
                  prev is not None, self._dummy if prev is None else prev.classifier,
                  s.rebrief_s > 0, float(self.now), float(self.horizon), float(self.capture_s),
-                 s.window_s, s.human_time_cost, tables.SKILL_SPEED, MAX_POINTS, tables.QUALITY,
-                 tables.P_RC, tables.T_BAR, tables.F_D, feats, prior)
+                 s.window_s, s.human_time_cost, MAX_POINTS, tables.TABLES, feats, prior)
         return StepInputs(feats, np.ones((E, H + 1), bool), prior, np.ones(E, bool))
 
     # -- commit ----------------------------------------------------------------------------------
@@ -297,9 +294,8 @@ class Decoder:
                        prev.navigator if charge else dummy,
                        prev.classifier if charge else dummy, charge, float(self.now),
                        float(s.rebrief_s), float(self.capture_s), st.speed, st.skill,
-                       st.robot_type, st.kind, st.diff, st.task_xy, tables.SKILL_SPEED,
-                       tables.QUALITY, tables.T_BAR, load.cum, load.booked, load.free,
-                       load.edges):
+                       st.robot_type, st.kind, st.diff, st.task_xy, tables.TABLES,
+                       load.cum, load.booked, load.free, load.edges):
             load.forget()
 
     def finish(self) -> Allocation:

@@ -18,12 +18,12 @@ INF = math.inf
 
 
 @jit
-def greedy_human(e, q, d, pts, t_ref, human_free, eta_lam, fat_greedy, t_bar, f_d, price):
+def greedy_human(e, q, d, pts, t_ref, human_free, eta_lam, fat_greedy, tab, price):
     """Greedy's best human classifier (first on ties) of an image of quality q and difficulty d,
     and its net value (`Decoder._greedy_net`, then the argmax of `_option_value`): the same
     whenever the image arrives (only the human's finish depends on that)."""
     H = human_free.shape[1]
-    tb, fd = t_bar[q, d], f_d[q, d]
+    tb, fd = tab.t_bar[q, d], tab.f_d[q, d]
     best_net, best_h = -INF, 0
     for h in range(H):
         delay = max(human_free[e, h] - t_ref, 0.0)
@@ -35,19 +35,19 @@ def greedy_human(e, q, d, pts, t_ref, human_free, eta_lam, fat_greedy, t_bar, f_
 
 
 @jit
-def _greedy_best(e, q, d, pts, arrive, t_ref, human_free, eta_lam, fat_greedy, t_bar, f_d,
+def _greedy_best(e, q, d, pts, arrive, t_ref, human_free, eta_lam, fat_greedy, tab,
                  price):
     """Greedy's best human classifier of an image captured at `arrive`: its net value and
     finish."""
-    h, net = greedy_human(e, q, d, pts, t_ref, human_free, eta_lam, fat_greedy, t_bar, f_d,
+    h, net = greedy_human(e, q, d, pts, t_ref, human_free, eta_lam, fat_greedy, tab,
                           price)
-    return net, max(arrive, human_free[e, h]) + t_bar[q, d]
+    return net, max(arrive, human_free[e, h]) + tab.t_bar[q, d]
 
 
 @jit
 def robot_step(p, robot_free, robot_done, robot_xy, speed, tx, ty, robot_type, kind, diff,
                points, r_ff, n_assigned, has_prev, prev_robot, n_pois, now, horizon, capture_s,
-               max_points, quality, p_rc, feats, mask, prior):
+               max_points, tab, feats, mask, prior):
     """Fill feats (E, R, F), mask (E, R) and prior (E, R) of the robot step."""
     E, R = robot_free.shape
     for e in range(E):
@@ -59,8 +59,8 @@ def robot_step(p, robot_free, robot_done, robot_xy, speed, tx, ty, robot_type, k
             travel = math.sqrt(gx * gx + gy * gy) / max(speed[e, r], 1e-9)
             arr = robot_free[e, r] + travel + capture_s
             mask[e, r] = not robot_done[e, r] and arr <= horizon
-            q = quality[robot_type[e, r], k, 1]
-            ev = scalar.expected_points(pts, p_rc[q, d])
+            q = tab.quality[robot_type[e, r], k, 1]
+            ev = scalar.expected_points(pts, tab.p_rc[q, d])
             is_ff = 1.0 if r == r_ff[e] else 0.0
             free = horizon if robot_done[e, r] else robot_free[e, r]
             f = feats[e, r]
@@ -80,8 +80,8 @@ def robot_step(p, robot_free, robot_done, robot_xy, speed, tx, ty, robot_type, k
 @jit
 def nav_step(p, r, robot_free, robot_xy, speed, tx, ty, robot_type, kind, diff, points, skill,
              high, human_free, eta_lam, fat_greedy, cum, n_edges, last_edge, bin_s, has_prev,
-             prev_nav, now, horizon, capture_s, window_s, price, offset_s, skill_speed,
-             max_points, quality, p_rc, t_bar, f_d, feats, mask, prior):
+             prev_nav, now, horizon, capture_s, window_s, price, offset_s,
+             max_points, tab, feats, mask, prior):
     """Fill feats (E, H + 1, F), mask and prior (E, H + 1) of the navigator step: autonomous
     (0), or human h (h + 1)."""
     E, H = human_free.shape
@@ -95,13 +95,13 @@ def nav_step(p, r, robot_free, robot_xy, speed, tx, ty, robot_type, kind, diff, 
         for j in range(H + 1):
             human = j > 0
             sk = skill[e, j - 1] if human else 1
-            leg = tr / (skill_speed[sk] if human else 1.0) + capture_s
+            leg = tr / (tab.skill_speed[sk] if human else 1.0) + capture_s
             free = max(t_r, human_free[e, j - 1]) if human else t_r
             arrive = free + leg
-            q = quality[robot_type[e, re], k, sk]
-            ev_on = scalar.expected_points(pts, p_rc[q, d])
+            q = tab.quality[robot_type[e, re], k, sk]
+            ev_on = scalar.expected_points(pts, tab.p_rc[q, d])
             best_net, best_fin = _greedy_best(e, q, d, pts, arrive, t_r, human_free, eta_lam,
-                                              fat_greedy, t_bar, f_d, price)
+                                              fat_greedy, tab, price)
             rt = scalar.option_rate(best_net, best_fin, horizon, ev_on,
                                     price * leg if human else 0.0, arrive - t_r, offset_s)
             ok = (not human or high[e, j - 1]) and arrive <= horizon
@@ -128,7 +128,7 @@ def nav_step(p, r, robot_free, robot_xy, speed, tx, ty, robot_type, kind, diff, 
 def cls_step(p, r, n, robot_free, robot_xy, speed, tx, ty, robot_type, kind, diff, points,
              skill, human_free, eta_lam, fat_greedy, fat_now, touched, cum, n_edges, last_edge,
              bin_s, has_prev, prev_cls, rebrief_on, now, horizon, capture_s, window_s, price,
-             skill_speed, max_points, quality, p_rc, t_bar, f_d, feats, prior):
+             max_points, tab, feats, prior):
     """Fill feats (E, H + 1, F) and prior (E, H + 1) of the classifier step: onboard (0), or
     human h (h + 1)."""
     E, H = human_free.shape
@@ -136,16 +136,16 @@ def cls_step(p, r, n, robot_free, robot_xy, speed, tx, ty, robot_type, kind, dif
         pe, re, ne = p[e], r[e], n[e]
         # the capture (`Decoder._arrival`)
         cls_ = skill[e, max(ne, 0)] if ne >= 0 else 1
-        v = speed[e, re] * (skill_speed[cls_] if ne >= 0 else 1.0)
+        v = speed[e, re] * (tab.skill_speed[cls_] if ne >= 0 else 1.0)
         depart = max(robot_free[e, re], human_free[e, max(ne, 0)]) if ne >= 0 \
             else robot_free[e, re]
-        q = quality[robot_type[e, re], kind[e, pe], cls_]
+        q = tab.quality[robot_type[e, re], kind[e, pe], cls_]
         gx = tx[e, pe] - robot_xy[e, re, 0]
         gy = ty[e, pe] - robot_xy[e, re, 1]
         arrive = depart + math.sqrt(gx * gx + gy * gy) / max(v, 1e-9) + capture_s
         d, pts = diff[e, pe], points[e, pe]
-        tb, fd = t_bar[q, d], f_d[q, d]
-        p_on = p_rc[q, d]
+        tb, fd = tab.t_bar[q, d], tab.f_d[q, d]
+        p_on = tab.p_rc[q, d]
         ev_on = scalar.expected_points(pts, p_on)
         t_ref = robot_free[e, re]
         prior[e, 0] = ev_on

@@ -23,9 +23,9 @@ def poi_step(left, robot_free, robot_done, robot_xy, speed, tx, ty, robot_type, 
              points, human_free, high, fat_greedy, fat_now, eta_lam, cum, n_edges, last_edge,
              bin_s, ev_onboard, has_prev, prev_robot, prev_cls, prev_valid, now, horizon,
              capture_s, window_s, price, offset_s, nav_speed, shortlist, max_points,
-             quality, p_rc, t_bar, f_d, feats, mask, prior, r_ff):
+             tab, feats, mask, prior, r_ff):
     """Fill feats (E, P, F) (zeros on entry), mask (E, P) (False), prior (E, P) (-1) and r_ff
-    (E,) for the decoder's POI step."""
+    (E,) for the decoder's POI step; `tab` the model's tables (`ata.model.tables.TABLES`)."""
     E, P = left.shape
     R = robot_free.shape[1]
     H = human_free.shape[1]
@@ -42,7 +42,7 @@ def poi_step(left, robot_free, robot_done, robot_xy, speed, tx, ty, robot_type, 
     # greedy's best human for an image of quality q and difficulty d does not depend on when
     # the image comes (only its finish does): per episode, the first POI of each (q, d) finds
     # it, the others read it
-    n_q, n_d = t_bar.shape
+    n_q, n_d = tab.t_bar.shape
     memo_pts = np.empty((n_q, n_d))
     memo_h = np.empty((n_q, n_d), np.int64)
     memo_net = np.empty((n_q, n_d))
@@ -101,10 +101,10 @@ def poi_step(left, robot_free, robot_done, robot_xy, speed, tx, ty, robot_type, 
                     continue
                 k, d, pts = kind[e, p], diff[e, p], points[e, p]
                 rtype = robot_type[e, rf]
-                q_o[0] = quality[rtype, k, 1]
-                q_o[1] = quality[rtype, k, 2]
-                ev_on[0] = scalar.expected_points(pts, p_rc[q_o[0], d])
-                ev_on[1] = scalar.expected_points(pts, p_rc[q_o[1], d])
+                q_o[0] = tab.quality[rtype, k, 1]
+                q_o[1] = tab.quality[rtype, k, 2]
+                ev_on[0] = scalar.expected_points(pts, tab.p_rc[q_o[0], d])
+                ev_on[1] = scalar.expected_points(pts, tab.p_rc[q_o[1], d])
                 leg_nav = travel[rf] / nav_speed + capture_s
                 arr_o[0] = arr[rf]
                 arr_o[1] = depart + leg_nav if has_nav else INF
@@ -114,10 +114,10 @@ def poi_step(left, robot_free, robot_done, robot_xy, speed, tx, ty, robot_type, 
                 for o in range(2):
                     at = min(arr_o[o], 1e12)
                     q = q_o[o]
-                    tb = t_bar[q, d]
+                    tb = tab.t_bar[q, d]
                     if memo_pts[q, d] != pts:
                         memo_h[q, d], memo_net[q, d] = greedy_human(
-                            e, q, d, pts, t_ff, human_free, eta_lam, fat_greedy, t_bar, f_d,
+                            e, q, d, pts, t_ff, human_free, eta_lam, fat_greedy, tab,
                             price)
                         memo_pts[q, d] = pts
                     best_net = memo_net[q, d]
@@ -134,7 +134,7 @@ def poi_step(left, robot_free, robot_done, robot_xy, speed, tx, ty, robot_type, 
                 for o in range(2):
                     at = min(arr_o[o], 1e12)
                     q = q_o[o]
-                    tb, fd = t_bar[q, d], f_d[q, d]
+                    tb, fd = tab.t_bar[q, d], tab.f_d[q, d]
                     top = -INF
                     for h in range(H):
                         begin = max(at, human_free[e, h])
