@@ -17,6 +17,8 @@ and the policies alike (a policy never imports a team model or another policy to
   worth, the rate per robot second), written once for the planner and the learned priors.
 * `ata.model.greedy_planner`: the greedy list-scheduling planner, the ``greedy`` policy's and
   the prior of the learned methods that build on it.
+* `ata.model.generic`: what lets a formula be written once for arrays and numbers (`select`,
+  `as_float`); `ata.model.scalar` compiles the formulas so written for the compiled loops.
 * `ata.model.events`: the events a policy sees (robots newly down, POIs newly changed), for the
   ``on_event`` condition and the learned conditions alike.
 

@@ -20,8 +20,9 @@ INF = math.inf
 @jit
 def greedy_human(e, q, d, pts, t_ref, human_free, eta_lam, fat_greedy, tab, price):
     """Greedy's best human classifier (first on ties) of an image of quality q and difficulty d,
-    and its net value (`Decoder._greedy_net`, then the argmax of `_option_value`): the same
-    whenever the image arrives (only the human's finish depends on that)."""
+    and its net value (greedy's `human_gain` and `human_net`; the array form is
+    tests/decoder_reference.py's `_greedy_net`): the same whenever the image arrives (only the
+    human's finish depends on that)."""
     H = human_free.shape[1]
     tb, fd = tab.t_bar[q, d], tab.f_d[q, d]
     best_net, best_h = -INF, 0
@@ -134,7 +135,7 @@ def cls_step(p, r, n, robot_free, robot_xy, speed, tx, ty, robot_type, kind, dif
     E, H = human_free.shape
     for e in range(E):
         pe, re, ne = p[e], r[e], n[e]
-        # the capture (`Decoder._arrival`)
+        # the capture (the array form: tests/decoder_reference.py's `_arrival`)
         cls_ = skill[e, max(ne, 0)] if ne >= 0 else 1
         v = speed[e, re] * (tab.skill_speed[cls_] if ne >= 0 else 1.0)
         depart = max(robot_free[e, re], human_free[e, max(ne, 0)]) if ne >= 0 \
