@@ -1,5 +1,7 @@
-"""Both built-in trainers are the declared `ata.training.Trainer`, and ATA-HRL's trainer is the
-`Host` its phases are written against (checked by a type checker where one is installed)."""
+"""Both built-in trainers are the declared `ata.training.Trainer`, ATA-HRL's trainer is the
+`Host` its phases are written against, the registry is the `Components` a mission's validation
+reads (checked by a type checker where one is installed), and `Mission.replace` derives what
+depends on the keys it replaces."""
 
 import importlib.util
 import subprocess
@@ -19,15 +21,30 @@ def test_the_built_in_trainers_are_trainers(plugins):
 
 
 @pytest.mark.skipif(importlib.util.find_spec("mypy") is None, reason="mypy is not installed")
-def test_the_ata_hrl_trainer_is_the_host_of_its_phases(tmp_path):
-    probe = tmp_path / "host_probe.py"
+def test_the_declared_protocols_hold_for_a_type_checker(tmp_path):
+    # ATA-HRL's trainer is the Host of its phases, both built-in trainers are Trainers (their
+    # methods' signatures too, which isinstance does not see), the registry is the Components a
+    # mission's validation reads
+    probe = tmp_path / "protocol_probe.py"
     probe.write_text(textwrap.dedent("""
+        from ata.core.components import Components
+        from ata.core.registry import Register
         from ata.plugins.ata_hrl.phases.host import Host
         from ata.plugins.ata_hrl.trainer import ATAHRLTrainer
+        from ata.plugins.tr_pomdp.trainer import TRPOMDPTrainer
+        from ata.training import Trainer
 
 
         def as_host(trainer: ATAHRLTrainer) -> Host:
             return trainer
+
+
+        def as_trainers(a: ATAHRLTrainer, b: TRPOMDPTrainer) -> list[Trainer]:
+            return [a, b]
+
+
+        def as_components(registry: Register) -> Components:
+            return registry
     """))
     done = subprocess.run([sys.executable, "-m", "mypy", "--ignore-missing-imports",
                            "--follow-imports=silent", "--no-incremental", str(probe)],

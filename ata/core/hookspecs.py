@@ -29,6 +29,7 @@ import numpy as np
 import pluggy
 
 if TYPE_CHECKING:
+    from ata.core.mission import Mission
     from ata.core.state import (Allocation, DecisionContext, DecisionView, EpisodeOutcome,
                                 Observation, SimState)
 
@@ -52,9 +53,7 @@ def ata_register_components(register: "Callable[[str, str, Any], None]") -> None
 @hookspec
 def ata_peak_bytes(mission: "Mission", batch: int) -> int:
     """The memory, in bytes, the component adds at its peak while `batch` scenarios of
-    `mission` (an ``ata.core.mission.Mission``: named, not imported, since the mission module
-    imports the registry that declares these hooks) run together (its own arrays, networks'
-    activations, solver models).
+    `mission` run together (its own arrays, networks' activations, solver models).
 
     Asked before any work starts, of the components built once on one scenario
     (``ata.runtime.memory``): a run cuts its batches smaller, or refuses the mission, naming

@@ -17,8 +17,8 @@ from typing import Any
 import tomli_w
 
 from ata.core import references as refs_mod
+from ata.core.components import Components
 from ata.core.errors import MissionError
-from ata.core.registry import Register
 from ata.core.seeds import seed_hash, secret_seed  # noqa: F401  (seed_hash: a test reads it here)
 from ata.core.settings import build_settings, for_team, param, settings_dict
 from ata.core.state import Clock, TeamSize
@@ -355,7 +355,7 @@ def named_components(raw: dict[str, Any]) -> list[str]:
     return list(dict.fromkeys(out))
 
 
-def validate(raw: dict[str, Any], registry: Register, source: str = "<built-in>",
+def validate(raw: dict[str, Any], registry: Components, source: str = "<built-in>",
              overrides: list[str] = ()) -> Mission:
     """Check every table and key of a raw mission dict and resolve all defaults.
 
@@ -383,7 +383,7 @@ def _blamed(exc: MissionError, overrides: list[str]) -> str | None:
     return None
 
 
-def _validate(raw: dict[str, Any], registry: Register, source: str) -> Mission:
+def _validate(raw: dict[str, Any], registry: Components, source: str) -> Mission:
     if "train" in raw:
         trainers = ", ".join(registry.names("trainer")) or "none registered"
         raise MissionError("[train]", None, "the training settings moved to the trainer's own "

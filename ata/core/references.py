@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
+from ata.core.components import ComponentInfo, Components
 from ata.core.errors import MissionError
 
 TABLE = "references"
@@ -130,13 +131,12 @@ def component_name(factory: Any) -> str:
     return name if isinstance(name, str) and name else getattr(factory, "__name__", "component")
 
 
-def _info(kind: str, name: str, factory: Any, source: str, digest: str) -> Any:
-    from ata.core.registry import ComponentInfo   # on use: the registry imports this module
+def _info(kind: str, name: str, factory: Any, source: str, digest: str) -> ComponentInfo:
     return ComponentInfo(kind, name, factory, plugin=f"reference {source}",
                          dist=f"{source.rpartition(':')[0]} sha256:{digest[:16]}")
 
 
-def _register(registry: Any, ref: Reference, factory: Any) -> None:
+def _register(registry: Components, ref: Reference, factory: Any) -> None:
     for (kind, name), info in registry.components.items():
         if name == ref.name and info.factory is not factory:
             raise MissionError("[components]", None, f"{ref.source!r} is named {ref.name!r}, "
@@ -147,7 +147,7 @@ def _register(registry: Any, ref: Reference, factory: Any) -> None:
                                                       ref.sha256)
 
 
-def resolve(raw: dict[str, Any], registry: Any, source: str,
+def resolve(raw: dict[str, Any], registry: Components, source: str,
             slot_kinds: dict[str, str]) -> tuple[dict[str, Any], dict[str, Reference]]:
     """A raw mission with every reference in ``[components]`` replaced by its component's name
     (each registered into `registry`), and the references by name. A ``[references]`` table (a
@@ -202,7 +202,8 @@ def resolve(raw: dict[str, Any], registry: Any, source: str,
     return out, refs
 
 
-def restore(references: dict[str, Reference], registry: Any = None) -> dict[str, Any]:
+def restore(references: dict[str, Reference],
+            registry: Components | None = None) -> dict[str, Any]:
     """Load the references of a mission received from another process: name -> factory, each
     registered into `registry` when given (a worker's fresh one). A file that changed since the
     mission was resolved is refused (its rows would mix two codes)."""
@@ -213,8 +214,9 @@ def restore(references: dict[str, Reference], registry: Any = None) -> dict[str,
             raise MissionError(f"[{TABLE}]", name, f"{ref.source.rpartition(':')[0]} changed "
                                f"while the run was under way (sha256 {ref.sha256[:16]} when "
                                f"it started, {digest[:16]} now): run it again")
-        for kind in ref.kind.split(",") if registry is not None else ():
-            registry.components[(kind, name)] = _info(kind, name, factory, ref.source, digest)
+        if registry is not None:
+            for kind in ref.kind.split(","):
+                registry.components[(kind, name)] = _info(kind, name, factory, ref.source, digest)
         factories[name] = factory
     return factories
 

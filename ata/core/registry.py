@@ -26,6 +26,7 @@ from typing import Any, Callable, Iterable
 import pluggy
 
 from ata.core import hookspecs
+from ata.core.components import ComponentInfo
 from ata.core.errors import MissionError
 
 KINDS = ("task_model", "human_model", "robot_model", "perturbation", "injector", "reconstructor",
@@ -155,17 +156,6 @@ def broken_plugins(pm: pluggy.PluginManager) -> list[BrokenPlugin]:
 
 def _dist_label(ep: metadata.EntryPoint) -> str:
     return f"{ep.dist.name} {ep.dist.version}" if ep.dist else "(unknown package)"
-
-
-@dataclass(frozen=True)
-class ComponentInfo:
-    """One registered component."""
-
-    kind: str
-    name: str
-    factory: Callable[..., Any]
-    plugin: str          # the registering plugin's name
-    dist: str            # distribution name and version, "ata 0.1.0"
 
 
 def _one_table(a: Callable[..., Any], b: Callable[..., Any]) -> bool:
