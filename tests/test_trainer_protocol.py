@@ -23,8 +23,8 @@ def test_the_built_in_trainers_are_trainers(plugins):
 @pytest.mark.skipif(importlib.util.find_spec("mypy") is None, reason="mypy is not installed")
 def test_the_declared_protocols_hold_for_a_type_checker(tmp_path):
     # ATA-HRL's trainer is the Host of its phases, both built-in trainers are Trainers (their
-    # methods' signatures too, which isinstance does not see), the registry is the Components a
-    # mission's validation reads
+    # methods' signatures too, which isinstance does not see) and their classes TrainerFactories
+    # (a Settings, the constructor), the registry is the Components a mission's validation reads
     probe = tmp_path / "protocol_probe.py"
     probe.write_text(textwrap.dedent("""
         from ata.core.components import Components
@@ -32,7 +32,7 @@ def test_the_declared_protocols_hold_for_a_type_checker(tmp_path):
         from ata.plugins.ata_hrl.phases.host import Host
         from ata.plugins.ata_hrl.trainer import ATAHRLTrainer
         from ata.plugins.tr_pomdp.trainer import TRPOMDPTrainer
-        from ata.training import Trainer
+        from ata.training import Trainer, TrainerFactory
 
 
         def as_host(trainer: ATAHRLTrainer) -> Host:
@@ -41,6 +41,10 @@ def test_the_declared_protocols_hold_for_a_type_checker(tmp_path):
 
         def as_trainers(a: ATAHRLTrainer, b: TRPOMDPTrainer) -> list[Trainer]:
             return [a, b]
+
+
+        def as_factories() -> list[TrainerFactory]:
+            return [ATAHRLTrainer, TRPOMDPTrainer]
 
 
         def as_components(registry: Register) -> Components:

@@ -3,7 +3,7 @@
 A *trainer* is a component of kind ``trainer``, registered by name like any other and chosen in
 a training mission's ``[components] trainer``; its settings are the table named after it. `ata
 train MISSION` builds it as ``factory(settings, mission, registry)`` and calls ``run``
-(`Trainer` declares it):
+(`TrainerFactory` declares the class, `Trainer` what it builds):
 
     class MyTrainer:
         log_fields = ["phase", "step", ...]                         # the columns of log.csv
@@ -43,9 +43,10 @@ from ata.runtime.inputs import WEIGHTS, family, file_digest, resolve, weights_fo
 from ata.training.checkpoints import (TRAINING_ID_LIMIT, VALIDATION_SEED_OFFSET, CheckpointError,
                                       load_cached, read_checkpoint, trained_on, trained_parts)
 from ata.training.loop import Phase, PhaseLoop
-from ata.training.protocol import Trainer
+from ata.training.protocol import Trainer, TrainerFactory
 from ata.training.run import TrainRun
 
 __all__ = ["TRAINING_ID_LIMIT", "VALIDATION_SEED_OFFSET", "WEIGHTS", "CheckpointError", "Phase",
-           "PhaseLoop", "TrainRun", "Trainer", "family", "file_digest", "load_cached",
-           "read_checkpoint", "resolve", "trained_on", "trained_parts", "weights_for"]
+           "PhaseLoop", "TrainRun", "Trainer", "TrainerFactory", "family", "file_digest",
+           "load_cached", "read_checkpoint", "resolve", "trained_on", "trained_parts",
+           "weights_for"]

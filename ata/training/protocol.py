@@ -1,10 +1,12 @@
-"""What a trainer component is: the protocol `ata train` builds and runs (`Trainer`), declared
-once for the built-in trainers and a third party's alike."""
+"""What a trainer component is: the class `ata train` builds (`TrainerFactory`) and the trainer
+it runs (`Trainer`), declared once for the built-in trainers and a third party's alike."""
 
 from __future__ import annotations
 
 from typing import Any, Protocol, runtime_checkable
 
+from ata.core.mission import Mission
+from ata.core.registry import Register
 from ata.training.run import TrainRun
 
 
@@ -33,3 +35,15 @@ class Trainer(Protocol):
     def run(self, run: TrainRun, resume: bool = False) -> dict[str, Any]:
         """Train into `run` (from its last checkpoint when `resume`) to the end; its report
         (``best_eval``, ``wall_s``, ``counters``)."""
+
+
+class TrainerFactory(Protocol):
+    """What is registered as a ``trainer``: a class with a ``Settings`` dataclass (its table's
+    keys), built as ``factory(settings, mission, registry)`` into a `Trainer`."""
+
+    @property
+    def Settings(self) -> type:                                       # noqa: N802 - a class
+        """The dataclass of the trainer's table."""
+
+    def __call__(self, settings: Any, mission: Mission, registry: Register) -> Trainer:
+        """The trainer of a training mission, from its table's settings."""
