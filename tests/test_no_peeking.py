@@ -176,8 +176,8 @@ def test_no_field_reachable_from_what_a_decision_maker_receives_equals_the_root_
     found = [type(x).__name__ for x in reachable((witness.seen, Witness.missions))
              if holds_seed(x)]
     assert found == []
-    # the world does hold it: the walk would have found it there
-    assert any(holds_seed(x) for x in reachable(sim.sim))
+    # the world's side does hold it (the simulation's mission): the walk would have found it
+    assert any(holds_seed(x) for x in reachable(sim))
 
 
 def test_a_reconstructor_sees_no_world():
