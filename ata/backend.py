@@ -82,7 +82,20 @@ def batch_part(ids: np.ndarray, record: Any) -> Part:
     return out
 
 
-class InProcess:
+class Quiet:
+    """A backend's parts that hold nothing between batches and have nothing to say."""
+
+    def notes(self, mission: Mission) -> list[str]:
+        return []
+
+    def open(self, parallel: bool) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+class InProcess(Quiet):
     """The mission's components built and called in this process (or in a worker's)."""
 
     label = "in-process"
@@ -110,15 +123,6 @@ class InProcess:
                   on_epoch: OnEpoch | None = None) -> Part:
         registry = registry if registry is not None else self.worker_registry(mission)
         return batch_part(ids, Simulation(mission, registry, ids).run(on_epoch=on_epoch))
-
-    def notes(self, mission: Mission) -> list[str]:
-        return []
-
-    def open(self, parallel: bool) -> None:
-        pass
-
-    def close(self) -> None:
-        pass
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, InProcess)

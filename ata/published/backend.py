@@ -10,7 +10,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ata.backend import IN_PROCESS, OnEpoch, Part
+from ata.backend import IN_PROCESS, OnEpoch, Part, Quiet
 from ata.core.errors import MissionError
 from ata.core.mission import Mission, parse_override
 from ata.core.registry import Register
@@ -22,7 +22,7 @@ from ata.session import Session, load_session
 _ROWS_READ: dict[Path, Results] = {}
 
 
-class PublishedRows:
+class PublishedRows(Quiet):
     """The rows of one method of a published set (`folder`, `method`), as a backend: its
     session is the published resolved mission of the cell an evaluation asks for, checked
     against the code and weights installed now; its batches are the published rows."""
@@ -57,15 +57,6 @@ class PublishedRows:
 
     def worker_registry(self, mission: Mission) -> None:
         return None
-
-    def notes(self, mission: Mission) -> list[str]:
-        return []
-
-    def open(self, parallel: bool) -> None:
-        pass
-
-    def close(self) -> None:
-        pass
 
     def _entry(self) -> dict[str, Any]:
         return json.loads((self.folder / MANIFEST).read_text(encoding="utf-8"))["methods"][
