@@ -11,19 +11,41 @@ step's cached code computing a formula its source no longer says. So a function 
 is checked, beside its own file, against every Python file of its folder and of the host's
 `ata.model` (where the formulas the loops share live): a change to any of them compiles it
 again.
+
+A cache that cannot be used never stops a command: an entry that cannot be read (an emptied or
+truncated file) or written is compiled anew, the entry's index dropped so that the next save
+writes a good one; where neither the source's folder nor numba's user cache is writable (a
+read-only install with no writable HOME), the cache goes to a folder of this user's under the
+system's temporary folder (``NUMBA_CACHE_DIR`` names another), else compiling goes on without
+a cache. Each says so in one ``warning:`` line on stderr, once a process.
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import os
+import sys
+import tempfile
 from pathlib import Path
 
 import numba
 
 _OPTIONS = dict(nogil=True, error_model="numpy")
 _MODEL = Path(__file__).resolve().parent
+_WARNED: set[str] = set()
+
+
+def _warn_once(what: str, text: str) -> None:
+    if what not in _WARNED:
+        _WARNED.add(what)
+        sys.stderr.write(f"warning: {text}\n")
+
+
+def _why(exc: BaseException) -> str:
+    lines = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {lines[0]}" if lines else type(exc).__name__
 
 
 @functools.lru_cache(maxsize=None)
@@ -62,6 +84,19 @@ def _make_cache():
         class Cache(caching.FunctionCache):
             _impl_class = Impl
 
+            @contextlib.contextmanager
+            def _guard_against_spurious_io_errors(self):
+                # around each load and save: an entry that cannot be used is compiled anew
+                try:
+                    yield
+                except Exception as exc:        # whatever a damaged file makes pickle raise
+                    index = getattr(self._cache_file, "_index_path", None)
+                    with contextlib.suppress(OSError, TypeError):
+                        os.unlink(index)
+                    _warn_once("entry", f"numba's cache of {self._py_func.__qualname__} "
+                               f"could not be used ({_why(exc)}) and is compiled anew "
+                               f"(cache folder: {self._cache_path})")
+
         return Cache
     except (ImportError, AttributeError, TypeError):
         return None
@@ -70,10 +105,45 @@ def _make_cache():
 _CACHE = _make_cache()
 
 
+def _fallback_folder() -> Path | None:
+    """This user's numba cache under the system's temporary folder, made private to the user
+    (None where it cannot be, or is not the user's own)."""
+    folder = Path(tempfile.gettempdir()) / f"ata-numba-{os.getuid()}"
+    try:
+        folder.mkdir(mode=0o700, exist_ok=True)
+        if folder.stat().st_uid != os.getuid() or not os.access(folder, os.W_OK):
+            return None
+    except OSError:
+        return None
+    return folder
+
+
+def _cached(fn, make):
+    """`make()`, a compiled `fn` with a cache; where numba finds no writable place for the
+    cache, with the cache in `_fallback_folder()`, else with none."""
+    try:
+        return make()
+    except RuntimeError as exc:               # numba: "cannot cache function ...: no locator"
+        folder = None if numba.config.CACHE_DIR else _fallback_folder()
+        if folder is not None:
+            numba.config.CACHE_DIR = str(folder)
+            _warn_once("folder", f"numba finds no writable cache folder beside ata or under "
+                       f"HOME; compiled code is cached in {folder} (set NUMBA_CACHE_DIR to "
+                       "choose another)")
+            with contextlib.suppress(RuntimeError):
+                return make()
+        _warn_once("none", f"numba cannot cache compiled code ({_why(exc)}); compiling "
+                   "without a cache (set NUMBA_CACHE_DIR to a writable folder to keep it)")
+        return numba.njit(**_OPTIONS)(fn)
+
+
 def jit(fn):
     """Compile `fn` as the host compiles its loops (see the module's text)."""
     if _CACHE is None or os.environ.get("NUMBA_CACHE_LOCATOR_CLASSES"):
-        return numba.njit(cache=True, **_OPTIONS)(fn)
-    dispatcher = numba.njit(**_OPTIONS)(fn)
-    dispatcher._cache = _CACHE(fn)
-    return dispatcher
+        return _cached(fn, lambda: numba.njit(cache=True, **_OPTIONS)(fn))
+
+    def make():
+        dispatcher = numba.njit(**_OPTIONS)(fn)
+        dispatcher._cache = _CACHE(fn)
+        return dispatcher
+    return _cached(fn, make)
