@@ -1,6 +1,7 @@
-"""check_component fails a component that changes what every other component reads in the
-host's process: a table of ata.model edited in place, a function of the kernel or the world's
-generator patched (at import, before any check ran)."""
+"""No component can change what every other component reads in the host's process: the tables
+of ata.model are read-only for good (a component that edits one in place raises, and fails its
+check), and check_component fails a component that patches a function of the kernel or the
+world's generator (at import, before any check ran)."""
 
 import pytest
 
@@ -26,14 +27,28 @@ class PlainGreedy(GreedyPolicy):
     name = "plain_greedy"
 
 
+TABLE_NAMES = ("POINTS", "QUALITY", "P_RC", "T_BAR", "SKILL_SPEED", "F_D")
+
+
+@pytest.mark.parametrize("name", TABLE_NAMES)
+def test_a_table_cannot_be_written_nor_made_writable(name):
+    table = getattr(tables, name)
+    before = table.copy()
+    with pytest.raises(ValueError, match="read-only"):
+        table[...] = 0
+    with pytest.raises(ValueError, match="read-only"):
+        table *= 2
+    with pytest.raises(ValueError, match="WRITEABLE"):
+        table.setflags(write=True)
+    assert (getattr(tables, name) == before).all()
+    if name.lower() in tables.Tables._fields:
+        assert getattr(tables.TABLES, name.lower()) is table
+
+
 def test_a_table_edited_in_place_fails_the_check():
-    before = tables.POINTS.copy()
-    try:
-        with pytest.raises(AssertionError, match="ata.model.tables.POINTS"):
-            check_component("policy", NormalisingGreedy, name="normalising_greedy", seed=3)
-    finally:
-        tables.POINTS[:] = before        # the runs are forked: this process keeps its table
-    assert (tables.POINTS == before).all()
+    with pytest.raises(AssertionError, match="read-only"):
+        check_component("policy", NormalisingGreedy, name="normalising_greedy", seed=3)
+    assert (tables.POINTS == [15.0, 25.0, 35.0]).all()
 
 
 def test_a_patched_generator_fails_the_check(monkeypatch):

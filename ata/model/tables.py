@@ -26,33 +26,41 @@ DIFFICULTIES = ("low", "medium", "high")
 QUALITIES = ("Low", "Medium", "Upper-Medium", "High")
 SKILLS = ("low", "medium", "high")
 
-POINTS = np.array([15.0, 25.0, 35.0])
+def _frozen(table: np.ndarray) -> np.ndarray:
+    """`table`, read-only for good: the world and every decision-maker read the same tables,
+    so none may write them (an in-place edit would move another method's rows, or the world's).
+    Its memory is an immutable bytes object, so its write flag cannot be set again."""
+    data = np.ascontiguousarray(table)
+    return np.frombuffer(data.tobytes(), dtype=data.dtype).reshape(data.shape)
+
+
+POINTS = _frozen(np.array([15.0, 25.0, 35.0]))
 """Points by difficulty [paper]."""
 MAX_POINTS = float(POINTS.max())
 """The most a POI is worth (35 points): the scale on which learned policies read points."""
 
-QUALITY = np.array([
+QUALITY = _frozen(np.array([
     # navigator class:  low, auto/medium, high
     [[1, 2, 3],    # UAV, air POI
      [0, 1, 2]],   # UAV, ground POI
     [[0, 1, 2],    # UGV, air POI
      [1, 2, 3]],   # UGV, ground POI
-], dtype=np.int64)
+], dtype=np.int64))
 """QUALITY[robot type, POI kind, navigator class] -> image quality [paper, Table I]."""
 
-P_RC = np.array([[0.5, 0.3, 0.1],
+P_RC = _frozen(np.array([[0.5, 0.3, 0.1],
                  [0.6, 0.4, 0.2],
                  [0.7, 0.5, 0.3],
-                 [0.8, 0.6, 0.4]])
+                 [0.8, 0.6, 0.4]]))
 """P_RC[quality, difficulty]: onboard classification success [testbed]."""
 
-T_BAR = np.array([[45.0, 125.0, 245.0],
+T_BAR = _frozen(np.array([[45.0, 125.0, 245.0],
                   [35.0, 95.0, 195.0],
                   [25.0, 65.0, 145.0],
-                  [15.0, 35.0, 95.0]])
+                  [15.0, 35.0, 95.0]]))
 """T_BAR[quality, difficulty]: human classification time in seconds [testbed]."""
 
-SKILL_SPEED = np.array(team.SKILL_SPEED)
+SKILL_SPEED = _frozen(np.array(team.SKILL_SPEED))
 """Speed multiplier under a human navigator of skill band low, medium, high [testbed ratio]."""
 
 
@@ -61,7 +69,7 @@ def decision_difficulty(t_bar: np.ndarray) -> np.ndarray:
     return 1.0 / (1.0 + np.exp(0.04 * (np.asarray(t_bar, dtype=float) - 180.0)))
 
 
-F_D = decision_difficulty(T_BAR)
+F_D = _frozen(decision_difficulty(T_BAR))
 """F_D[quality, difficulty]."""
 
 
