@@ -59,6 +59,8 @@ def report(run_dir: List[Path] = typer.Argument(
                                "ata report RUN_DIR")
         log, written = training_report.write_curves(run_dir[0], out, not no_figures)
         terminal.table(f"training log {log.path}", *training_report.curves_rows(log))
+        for t in training_report.seed_tables(log):
+            terminal.table(t.title, t.header, t.rows)
     elif markdown:
         pairs = [tuple(_split(p)) for p in pair or []]
         if any(len(p) != 2 for p in pairs):
@@ -144,6 +146,7 @@ def _against_published(folders: List[Path], column: Optional[List[str]], base: O
     --base), on the published rows, after `published.check_pairing`."""
     from ata.core.errors import MissionError   # on use: start-up time
     from ata.results import compare as cmp   # on use: start-up time
+    from ata.results import seeds   # on use: start-up time
     from ata.published import sets as published   # on use: start-up time
     from ata.results.rows import read_results   # on use: start-up time
 
@@ -159,6 +162,11 @@ def _against_published(folders: List[Path], column: Optional[List[str]], base: O
     for name in bases:
         tables += cmp.compare(mine, theirs, list(dict.fromkeys(column or ["score"])),
                               base=name, methods=methods, power=power, resamples=resamples)
+    # across training seeds (ata.results.seeds): each method's seeds grouped, A - B with its
+    # two-level interval and P(a seed of A beats a seed of B)
+    if not power:
+        tables += seeds.published_tables(mine, theirs, bases, resamples,
+                                         (column or ["score"])[0], methods)
     if markdown:
         print(cmp.markdown(tables), end="")
         return

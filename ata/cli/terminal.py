@@ -231,6 +231,8 @@ def report_tables(report) -> None:
 
     for setting, level in report.groups():
         table(title(setting, level), *table_rows(report, setting, level, short=True))
+    for t in report.seeds:
+        table(t.title, t.header, t.rows)
 
 
 def show_summary(shown) -> None:

@@ -25,11 +25,19 @@ from ata.runtime import extras
 from ata.runtime.folders import prepare_out_dir, writing
 from ata.results.rows import (BOOTSTRAP_SEED, RESAMPLES, Results, beat_probability,
                                     bootstrap_ci, nanmean, paired_values, read_results)
+from ata.results.seeds import SeedTable, has_seeds, seed_tables
 
 DEFAULT_REFERENCE = "ATA-HRL"
 PAIRED_REFERENCE = "greedy"
 """The default reference of the paired-difference figure: what each method gains over greedy."""
 ABLATION_PREFIX = "w/o"
+SEEDS_TEXT = ("A method named `NAME seed S` is training seed S of NAME. Per method: its seeds, the "
+              "scenarios every seed ran, the mean over seeds of their means with a 95% interval "
+              "from a two-level bootstrap (seeds, then the scenarios, one draw for all seeds), "
+              "or, with one seed, the scenario-level bootstrap; the interquartile mean (IQM) "
+              "and the spread of the seeds' means. Per pair: A - B with its two-level interval "
+              "and P(seed of A beats seed of B), the share of seed pairs whose mean over the "
+              "paired scenarios is higher, ties counting half.")
 
 
 # -- summary ------------------------------------------------------------------------------------
@@ -56,6 +64,8 @@ class Report:
     reference: str
     results: Results
     cells: list[Cell] = field(default_factory=list)
+    seeds: list[SeedTable] = field(default_factory=list)
+    """Where a method has rows from several training seeds: the tables across seeds."""
 
     def table(self, setting: str, level: str) -> list[Cell]:
         return [c for c in self.cells if c.setting == setting and c.level == level]
@@ -96,6 +106,8 @@ def summarize(res: Results, reference: str | None = None, resamples: int = RESAM
                     classified_share=nanmean(c["classified_share"][sel]),
                     reallocations=nanmean(realloc[sel]) if realloc is not None else nan,
                     beats=beats, diff=diff))
+    if has_seeds(res):
+        report.seeds = seed_tables(res, reference, resamples)
     return report
 
 
@@ -198,6 +210,11 @@ def markdown(report: Report, written: list[Path] = (), paired: list[Paired] = ()
     for setting, level in report.groups():
         header, rows = table_rows(report, setting, level)
         lines += [f"## {title(setting, level).capitalize()}", "", *md_table(header, rows), ""]
+    if report.seeds:
+        lines += ["## Across training seeds", "", SEEDS_TEXT, ""]
+        for t in report.seeds:
+            lines += [f"### {t.title[0].upper()}{t.title[1:]}", "", *md_table(t.header, t.rows),
+                      ""]
     pngs = [p for p in written if p.suffix == ".png"]
     if pngs:
         lines += ["## Figures", "", "Each as PNG and SVG beside this file.", ""]

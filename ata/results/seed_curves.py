@@ -16,12 +16,10 @@ import numpy as np
 from ata.results.curves import CURVE_PANELS, TrainingLog, read_log
 from ata.results.report import md_table, pyplot, save_figure
 from ata.results.rows import bootstrap_ci, paired_values, read_results
+from ata.results.seeds import SeedTable, across_seeds, iqm, seed_matrix, seed_tables
 from ata.runtime.folders import prepare_out_dir, writing
 from ata.training import read_checkpoint
 from ata.training.folders import read_seeds
-
-RESAMPLES = 2000
-
 
 @dataclass
 class SeedLogs:
@@ -139,22 +137,17 @@ def _t_half(v: np.ndarray) -> float:
     return float(stats.t.ppf(0.975, v.size - 1) * v.std(ddof=1) / math.sqrt(v.size))
 
 
-def iqm(values: np.ndarray) -> float:
-    """The interquartile mean: the mean of the middle half (rliable's; all of 1 to 3 values)."""
-    v = np.sort(np.asarray(values, dtype=float))
-    cut = int(math.floor(v.size * 0.25))
-    return float(v[cut:v.size - cut].mean())
-
-
 def paired_rows(seeds: SeedLogs, eval_dir: Path, reference: str = "greedy"):
     """Each seed's best weights minus `reference` on the same scenarios (mean, 95% bootstrap
-    CI over scenarios), and the IQM of the seeds' mean differences with a 95% bootstrap CI that
-    resamples seeds and, within each, scenarios."""
+    CI over scenarios); then, per cell, the mean and the IQM of the seeds' differences with
+    their 95% intervals from the two-level bootstrap of `ata.results.seeds` (seeds, then
+    scenarios)."""
     res = read_results(eval_dir)
     header = ["seed", "method", "cell", "scenarios", f"mean - {reference} (95% CI)"]
-    rows, diffs = [], []
+    rows = []
     for setting, level in [(s, lv) for s in res.settings for lv in res.levels]:
         ref = res.select(reference, setting, level)
+        names = []
         for seed in seeds.seeds:
             name = next((m for m in res.methods if m.endswith(f" seed {seed}")), None)
             if name is None or not ref.any():
@@ -162,24 +155,30 @@ def paired_rows(seeds: SeedLogs, eval_dir: Path, reference: str = "greedy"):
             a, b = paired_values(res, ref, res.select(name, setting, level))
             if not a.size:
                 continue
-            d = b - a
-            mean, low, high = bootstrap_ci(d)
-            diffs.append(d)
-            rows.append([str(seed), name, f"{setting}/{level}", str(d.size),
+            mean, low, high = bootstrap_ci(b - a)
+            names.append(name)
+            rows.append([str(seed), name, f"{setting}/{level}", str(a.size),
                          f"{mean:+.2f} [{low:+.2f}, {high:+.2f}]"])
-    if diffs:
-        point = iqm(np.array([d.mean() for d in diffs]))
-        gen = np.random.default_rng(0)
-        boots = []
-        for _ in range(RESAMPLES):
-            pick = gen.integers(0, len(diffs), len(diffs))
-            boots.append(iqm(np.array([diffs[i][gen.integers(0, diffs[i].size,
-                                                             diffs[i].size)].mean()
-                                       for i in pick])))
-        low, high = np.quantile(boots, [0.025, 0.975])
-        rows.append(["IQM over seeds", "", "", str(sum(d.size for d in diffs)),
-                     f"{point:+.2f} [{low:+.2f}, {high:+.2f}]"])
+        if len(names) > 1:
+            # the differences on the scenarios every seed ran, a (seeds x scenarios) matrix
+            mine, ref_rows = seed_matrix(res, names, setting, level,
+                                         also=[(res, [reference])])
+            stats = across_seeds(mine - ref_rows)
+            size = f"{len(names)} x {stats.scenarios}"
+            rows.append(["mean over seeds", "", f"{setting}/{level}", size,
+                         f"{stats.mean:+.2f} [{stats.low:+.2f}, {stats.high:+.2f}]"])
+            rows.append(["IQM over seeds", "", f"{setting}/{level}", size,
+                         f"{stats.iqm:+.2f} [{stats.iqm_low:+.2f}, {stats.iqm_high:+.2f}]"])
     return header, rows
+
+
+def eval_tables(seeds: SeedLogs) -> list[SeedTable]:
+    """The across-seed tables (`ata.results.seeds.seed_tables`) of the folder's evaluation,
+    eval/, once `ata eval DIR -o DIR/eval` has run: the seeds as one method, against greedy."""
+    eval_dir = seeds.path / "eval"
+    if not (eval_dir / "results.csv").is_file():
+        return []
+    return seed_tables(read_results(eval_dir))
 
 
 def write_seed_report(folder: str | Path, out_dir: str | Path | None = None,
@@ -201,8 +200,11 @@ def write_seed_report(folder: str | Path, out_dir: str | Path | None = None,
         eval_dir = seeds.path / "eval"
         if (eval_dir / "results.csv").is_file():
             lines += ["Each seed's best.pt against greedy on the same scenarios (`ata eval` "
-                      "in eval/); the IQM's interval resamples seeds, then scenarios:", "",
+                      "in eval/); the intervals over seeds resample seeds, then scenarios:", "",
                       *md_table(*paired_rows(seeds, eval_dir)), ""]
+            for t in eval_tables(seeds):
+                lines += [f"{t.title[0].upper()}{t.title[1:]}:", "",
+                          *md_table(t.header, t.rows), ""]
         lines += [f"![{p.stem}]({p.name})" for p in written if p.suffix == ".png"]
         path = out / "curves.md"
         path.write_text("\n".join(lines) + "\n", encoding="utf-8")

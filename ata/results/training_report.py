@@ -34,3 +34,9 @@ def curves_rows(log: Any) -> tuple[list[str], list[list[str]]]:
     if isinstance(log, curves.TrainingLog):
         return curves.curves_rows(log)
     return seed_curves.best_rows(log)
+
+
+def seed_tables(log: Any) -> list[Any]:
+    """A folder of seeds' across-seed tables of its evaluation (`seed_curves.eval_tables`);
+    none for one run."""
+    return [] if isinstance(log, curves.TrainingLog) else seed_curves.eval_tables(log)

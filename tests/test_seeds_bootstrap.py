@@ -1,0 +1,149 @@
+"""The across-seed statistics (`ata.results.seeds`) on synthetic rows whose answer is known: the
+two-level bootstrap's interval counts the variance between seeds and between scenarios, each
+alone and both together, so that a bootstrap of one level fails; the IQM, the spread and P(a
+seed of A beats a seed of B); and the across-seed tables of `ata report` and `ata compare`."""
+
+from __future__ import annotations
+
+import csv
+import math
+
+import numpy as np
+import pytest
+
+from ata.results import seeds as sd
+from ata.results.rows import bootstrap_ci, read_results
+
+Z = 1.959964
+K, N = 40, 60          # seeds, scenarios: enough that the bootstrap's interval is near normal
+R = 6000
+
+
+def width(interval) -> float:
+    return interval[2] - interval[1]
+
+
+@pytest.fixture(scope="module")
+def effects():
+    gen = np.random.default_rng(7)
+    a = gen.normal(0.0, 8.0, K)                 # each seed's effect
+    b = gen.normal(0.0, 10.0, N)                # each scenario's effect, the same for every seed
+    return a, b
+
+
+def test_seed_variance_alone_gives_the_interval_of_the_mean_of_k_seed_means(effects):
+    a, _ = effects
+    scores = 50.0 + a[:, None] + np.zeros((K, N))          # no scenario noise
+    # the bootstrap of the mean of K values: sd = their population sd / sqrt(K)
+    analytic = 2 * Z * a.std() / math.sqrt(K)
+    assert width(sd.two_level(scores, R)) == pytest.approx(analytic, rel=0.08)
+
+
+def test_scenario_variance_alone_gives_the_scenario_level_interval(effects):
+    _, b = effects
+    scores = 50.0 + np.zeros((K, 1)) + b[None, :]          # every seed the same
+    expected = width(bootstrap_ci(b, R))
+    assert width(sd.two_level(scores, R)) == pytest.approx(expected, rel=0.08)
+    assert expected == pytest.approx(2 * Z * b.std() / math.sqrt(N), rel=0.08)
+
+
+def test_both_levels_add_up_and_are_wider_than_either(effects):
+    a, b = effects
+    scores = 50.0 + a[:, None] + b[None, :]
+    seeds_alone = 2 * Z * a.std() / math.sqrt(K)
+    scenarios_alone = 2 * Z * b.std() / math.sqrt(N)
+    got = width(sd.two_level(scores, R))
+    assert got > 1.2 * max(seeds_alone, scenarios_alone)
+    assert got == pytest.approx(math.hypot(seeds_alone, scenarios_alone), rel=0.08)
+
+
+def test_the_bootstrap_is_fixed_and_one_seed_falls_back_to_the_scenarios(effects):
+    a, b = effects
+    scores = 50.0 + a[:5, None] + b[None, :]
+    assert sd.two_level(scores) == sd.two_level(scores)
+    one = sd.across_seeds(scores[:1])
+    assert (one.seeds, one.two_level) == (1, False)
+    assert (one.mean, one.low, one.high) == bootstrap_ci(scores[0])
+    assert sd.summary_row(one)[1:5:3] == ["1 seed", "scenarios (1 seed)"]
+
+
+def test_iqm_spread_and_the_probability_that_a_seed_beats_another():
+    seed_means = np.array([10.0, 11.0, 12.0, 13.0, 100.0])     # one seed far off
+    scores = seed_means[:, None] + np.array([-1.0, 0.0, 1.0])
+    s = sd.across_seeds(scores)
+    assert s.iqm == pytest.approx(12.0)                          # the middle three
+    assert s.mean == pytest.approx(29.2)
+    assert (s.lowest, s.highest) == (10.0, 100.0)
+    assert s.sd == pytest.approx(np.std(seed_means, ddof=1))
+    other = np.array([11.5, 12.5])[:, None] + np.zeros(3)
+    # A's seeds above 11.5: 12, 13, 100 (3 of 5); above 12.5: 13, 100 (2 of 5)
+    assert sd.beat_probability(scores, other) == pytest.approx(5 / 10)
+    assert sd.beat_probability(other, other) == pytest.approx(0.5)
+    p = sd.pair_across(scores, other, "A", "B")
+    assert p.mean == pytest.approx(29.2 - 12.0) and p.low < p.mean < p.high
+
+
+def test_method_names_group_into_seeds():
+    groups = sd.seed_groups(["mine seed 1", "greedy", "mine seed 0", "ATA-HRL", "ATA-HRL seed 3"])
+    assert groups == {"mine": ["mine seed 0", "mine seed 1"], "greedy": ["greedy"],
+                      "ATA-HRL (one run)": ["ATA-HRL"], "ATA-HRL": ["ATA-HRL seed 3"]}
+    assert sd.split_seed("w/o.C seed 12") == ("w/o.C", 12)
+    assert sd.split_seed("seedling") == ("seedling", None)
+
+
+def write_results(path, scores: dict[str, np.ndarray]):
+    path.mkdir(parents=True, exist_ok=True)
+    with open(path / "results.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["method", "setting", "uncertainty", "scenario", "seed", "score",
+                    "upper_bound", "fraction_of_u", "classified_share"])
+        for method, values in scores.items():
+            for i, v in enumerate(values):
+                w.writerow([method, "a", "medium", 1000 + i, 0, v, 100, v / 100, 0.5])
+    return path
+
+
+def test_report_prints_the_across_seed_tables(cli, tmp_path):
+    gen = np.random.default_rng(3)
+    base = gen.normal(40, 5, 30)
+    folder = write_results(tmp_path / "eval", {
+        **{f"mine seed {s}": base + 3 * s + 1 for s in range(3)}, "greedy": base})
+    res = read_results(folder)
+    assert sd.has_seeds(res)
+    tables = sd.seed_tables(res)
+    summary, pairs = tables
+    assert [r[:3] for r in summary.rows] == [["mine", "3 seeds", "30"],
+                                             ["greedy", "1 seed", "30"]]
+    assert pairs.rows[0][0] == "mine - greedy" and pairs.rows[0][-1] == "1.00"
+    out = cli("report", folder, "--no-figures").output
+    assert "across training seeds" in out and "3 seeds" in out
+    assert "across training seeds" in (folder / "report.md").read_text()
+
+
+def test_compare_against_published_seeds_groups_both_sides(tmp_path):
+    gen = np.random.default_rng(5)
+    base = gen.normal(40, 5, 20)
+    mine = read_results(write_results(tmp_path / "mine", {
+        f"mine seed {s}": base + s for s in range(2)}))
+    theirs = read_results(write_results(tmp_path / "pub", {
+        **{f"ATA-HRL seed {s}": base + 0.5 + 2 * s for s in range(5)}, "greedy": base - 9}))
+    summary, pairs = sd.published_tables(mine, theirs, ["ATA-HRL", "greedy"])
+    assert [r[:2] for r in summary.rows] == [["mine", "2 seeds"],
+                                             ["ATA-HRL (published)", "5 seeds"],
+                                             ["greedy (published)", "1 seed"]]
+    # mine's seeds 40+0, 40+1 against ATA-HRL's 40.5, 42.5, ...: seed 1 beats one of five
+    assert [(r[0], r[1], r[-1]) for r in pairs.rows] == [("mine - ATA-HRL", "2 / 5", "0.10"),
+                                                         ("mine - greedy", "2 / 1", "1.00")]
+
+
+def test_a_folder_of_seeds_reports_its_evaluation_across_seeds(tmp_path):
+    from ata.results.seed_curves import SeedLogs, eval_tables, paired_rows
+    base = np.random.default_rng(9).normal(40, 5, 25)
+    write_results(tmp_path / "eval", {**{f"mine seed {s}": base + 1 + s for s in range(3)},
+                                      "greedy": base})
+    seeds = SeedLogs(tmp_path, [0, 1, 2], [], [])
+    header, rows = paired_rows(seeds, tmp_path / "eval")
+    assert [r[0] for r in rows] == ["0", "1", "2", "mean over seeds", "IQM over seeds"]
+    assert rows[3][3] == "3 x 25" and rows[3][4].startswith("+2.00 [")
+    summary, pairs = eval_tables(seeds)
+    assert summary.rows[0][:2] == ["mine", "3 seeds"] and pairs.rows[0][0] == "mine - greedy"
