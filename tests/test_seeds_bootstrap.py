@@ -147,3 +147,12 @@ def test_a_folder_of_seeds_reports_its_evaluation_across_seeds(tmp_path):
     assert rows[3][3] == "3 x 25" and rows[3][4].startswith("+2.00 [")
     summary, pairs = eval_tables(seeds)
     assert summary.rows[0][:2] == ["mine", "3 seeds"] and pairs.rows[0][0] == "mine - greedy"
+
+
+def test_report_markdown_gives_the_across_seed_tables(cli, tmp_path):
+    base = np.random.default_rng(4).normal(40, 5, 20)
+    folder = write_results(tmp_path / "eval", {**{f"mine seed {s}": base + 2 + s
+                                                  for s in range(4)}, "greedy": base})
+    out = cli("report", folder, "--markdown").output
+    assert f"| mine (4 seeds) | {base.mean() + 3.5:.1f} [" in out and "| greedy (1 seed) | " in out
+    assert "| mine - greedy | +3.5 [" in out and "; P 1.00 |" in out

@@ -12,6 +12,7 @@ import numpy as np
 from ata.results.report import default_pairs, md_table
 from ata.results.rows import (BOOTSTRAP_SEED, RESAMPLES, Results, bootstrap_ci, nanmean,
                                     paired_values)
+from ata.results.seeds import has_seeds, seed_markdown
 from ata.runtime.machine import machine_text
 
 
@@ -60,6 +61,9 @@ def results_markdown(res: Results, pairs: list[tuple[str, str]] | None = None,
     lines += [f"Paired differences{what}, A - B on the same scenarios, mean [95% bootstrap CI] "
               "(bold: the interval is above 0):", "",
               *md_table(["paired difference", *columns], rows)]
+    if has_seeds(res):
+        lines += ["", *seed_markdown(res, default_pairs(res) if pairs is None else pairs,
+                                     resamples, column)][:-1]
     if "wall_s" in c:
         rows = [[res.label(m)] + [fmt_time(c["wall_s"][res.select(m, s, lv)]) for s, lv in groups]
                 for m in res.methods]

@@ -376,3 +376,57 @@ def published_tables(mine: Results, theirs: Results, bases: list[str],
                 out.append(SeedTable(setting, level, PAIR_WHAT + " (B published)",
                                      list(PAIR_HEADER), pairs))
     return out
+
+
+def seed_markdown(res: Results, pairs: list[tuple[str, str]], resamples: int = RESAMPLES,
+                  column: str = "score") -> list[str]:
+    """The across-seed tables of docs/RESULTS.md (`ata report --markdown`), a column per
+    (setting, level): each method (its seeds grouped) with its seeds, mean [two-level 95% CI],
+    IQM and the range of its seeds' means; then the `pairs` (by method or label, each pair of
+    labels once) A - B [two-level 95% CI] with P(a seed of A beats a seed of B)."""
+    groups = seed_groups(res.methods)
+    cells = [(s, lv) for s in res.settings for lv in res.levels]
+    rows = []
+    for g, ms in groups.items():
+        row, most = [], 0
+        for s, lv in cells:
+            here = [m for m in ms if res.select(m, s, lv).any()]
+            scores = seed_matrix(res, here, s, lv, "score")[0] if here else np.zeros((0, 0))
+            if not scores.size:
+                row.append("-")
+                continue
+            x = across_seeds(scores, g, s, lv, resamples)
+            most = max(most, x.seeds)
+            spread = f"; {x.lowest:.1f} to {x.highest:.1f}" if x.seeds > 1 else ""
+            row.append(f"{x.mean:.1f} [{x.low:.0f}, {x.high:.0f}]; IQM {x.iqm:.1f}{spread}")
+        rows.append([f"{g} ({seeds_text(most)})", *row])
+    header = [f"({s}) {lv}" for s, lv in cells]
+    lines = ["Across training seeds: the mean over seeds [95% CI of a two-level bootstrap, seeds "
+             "then scenarios; one seed: over scenarios], the IQM of the seeds' means and their "
+             "range:", "", *_md(["method", *header], rows), ""]
+    done, rows = set(), []
+    for a, b in pairs:
+        la, lb = _group_of(groups, a), _group_of(groups, b)
+        if la is None or lb is None or (la, lb) in done or la == lb:
+            continue
+        done.add((la, lb))
+        row = [f"{la} - {lb}"]
+        for s, lv in cells:
+            ma = [m for m in groups[la] if res.select(m, s, lv).any()]
+            mb = [m for m in groups[lb] if res.select(m, s, lv).any()]
+            p = _pair(res, ma, la, res, mb, lb, s, lv, resamples, column) if ma and mb else None
+            row.append("-" if p is None else
+                       f"{p.mean:+.1f} [{p.low:+.1f}, {p.high:+.1f}]; P {p.beats:.2f}")
+        rows.append(row)
+    what = "" if column == "score" else f" of `{column}`"
+    lines += [f"Paired differences{what} across training seeds, A - B [two-level 95% CI]; P: "
+              "the probability that a seed of A beats a seed of B:", "",
+              *_md(["paired difference", *header], rows), ""]
+    return lines
+
+
+def _md(header: list[str], rows: list[list[str]]) -> list[str]:
+    """A Markdown table (as `ata.results.report.md_table`, which imports this module)."""
+    return (["| " + " | ".join(header) + " |",
+             "|" + "|".join(["---"] + ["---:"] * (len(header) - 1)) + "|"]
+            + ["| " + " | ".join(r) + " |" for r in rows])
