@@ -8,10 +8,12 @@ as ``factory(settings, mission)``, its ``Settings`` dataclass gives its keys, an
 marked with ``ata.hookimpl``. Its **name** is its ``name`` class attribute when that is a string,
 else the class name: the resolved mission names it so, its settings table is named after it, and
 the resolved mission's ``[references]`` table records where it came from and the SHA-256 of its
-file. A file's code is loaded once per version of the file.
+file. A file's code is loaded once per version of the file; the modules of its folder are
+importable from it (its folder is appended to ``sys.path``) and are part of its code digest.
 
 `code_digest` is the digest of the source files a component's code comes from (its plugin's
-package or module, the factory's module; for a reference, its file): the plan of a run records
+package or module, the factory's module; for a reference, its file and the modules of its folder
+that it imports): the plan of a run records
 it, so that results made with other code are never resumed as if they were current.
 """
 
@@ -112,6 +114,9 @@ def load(text: str, where: str, base: Path | None = None) -> tuple[Any, str, str
 
 def _load_file(path: Path, digest: str, text: str, where: str) -> Any:
     name = f"ata_file_{path.stem}_{digest[:12]}"
+    folder = str(path.parent)
+    if folder not in sys.path:        # its own folder's modules importable from it, as for a
+        sys.path.append(folder)       # script; after every other folder: it shadows nothing
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module                     # dataclasses and pickle look it up there
@@ -269,8 +274,9 @@ def _imported(path: Path, name: str, package: bool) -> list[str]:
 def code_files(factory: Callable[..., Any], plugin: str | None = None) -> list[Path]:
     """The source files a component's code comes from: the module that defines its class (its
     file, for a component named by reference), the registering plugin's module or whole
-    package, and every module of ata or of the component's own top-level package that these
-    import, directly or not (read from their import statements)."""
+    package, and every module of ata or of the component's own top-level package (for a
+    component named by file, every module of the file's folder) that these import, directly or
+    not (read from their import statements)."""
     module = getattr(factory, "__module__", None) or ""
     key = (module, plugin, tuple(_stamp(sys.modules.get(n)) for n in (module, plugin)))
     if key not in _CLOSURES:
@@ -287,8 +293,20 @@ def _stamp(module: Any) -> tuple[int, int]:
     return (stat.st_mtime_ns, stat.st_size) if stat else (0, 0)
 
 
+def _local(name: str, folder: Path | None) -> bool:
+    """Whether the module `name` (its top-level module) is a file or package of `folder`."""
+    if folder is None:
+        return False
+    path, _ = _module_file(name.split(".")[0])
+    return path is not None and path.resolve().is_relative_to(folder)
+
+
 def _closure(module: str, plugin: str | None) -> list[Path]:
-    tops = {"ata"} | ({module.split(".")[0]} if not module.startswith("ata_file_") else set())
+    by_file = module.startswith("ata_file_")
+    tops = {"ata"} | ({module.split(".")[0]} if not by_file else set())
+    # a component named by file: the modules it imports from its own folder are its code too
+    file = getattr(sys.modules.get(module), "__file__", None) if by_file else None
+    folder = Path(file).resolve().parent if file else None
     todo = [n for n in (module, plugin) if n]
     seen: set[str] = set()
     files: set[Path] = set()
@@ -305,8 +323,8 @@ def _closure(module: str, plugin: str | None) -> list[Path]:
         files.add(path.resolve())
         if name == plugin and package:
             files |= {p.resolve() for p in path.parent.rglob("*.py")}
-        todo += [n for n in _imported(path, name, package) if n.split(".")[0] in tops
-                 and n not in seen]
+        todo += [n for n in _imported(path, name, package) if n not in seen
+                 and (n.split(".")[0] in tops or _local(n, folder))]
     return sorted(files)
 
 
