@@ -234,3 +234,15 @@ def test_settings_that_size_an_allocation_have_an_upper_bound_and_its_reason():
         allowed, text = rows[key]
         assert " to " in allowed, (key, allowed)                      # a maximum
         assert "(" in text or "at most" in text, (key, text)         # and why
+
+
+def test_a_declared_component_a_bare_registry_does_not_load_is_named_not_suggested():
+    from ata.core.errors import MissionError
+    from ata.core.registry import Register
+
+    with pytest.raises(MissionError) as caught:
+        Register().get("policy", "attention", "[components] initial")
+    text = str(caught.value)
+    assert "policy 'attention' is declared by the plugin ata.plugins.ata_hrl" in text
+    assert "collect_components(get_plugin_manager())" in text
+    assert "did you mean 'attention'" not in text and "unknown policy" not in text

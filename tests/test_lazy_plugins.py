@@ -73,7 +73,9 @@ def test_a_registry_loads_a_named_component_on_demand():
     assert registry.loaded == ["ita", "aux"]
     assert registry.names("policy") == ["attention", "greedy", "keep", "milp", "random"]
     # a registry without a plugin manager (a test's own) loads nothing
-    with pytest.raises(MissionError, match="unknown reconstructor 'aux'"):
+    with pytest.raises(MissionError, match="reconstructor 'aux' is declared by the plugin "
+                                           "ata.plugins.ata_hrl.aux, which this registry "
+                                           "does not load"):
         Register().get("reconstructor", "aux", "test")
 
 

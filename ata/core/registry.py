@@ -234,7 +234,12 @@ class Register:
                 n for (k, n), m in declared.items()
                 if k == kind and (self._pm is None or self._pm.get_plugin(m) is None)})
             hint = ""
-            close = difflib.get_close_matches(name, known, n=1)
+            close = difflib.get_close_matches(name, [n for n in known if n != name], n=1)
+            if (kind, name) in declared:    # declared, but this registry loads no plugin
+                raise MissionError(where, None, f"{kind} {name!r} is declared by the plugin "
+                                   f"{declared[(kind, name)]}, which this registry does not "
+                                   "load (a registry made without a plugin manager loads "
+                                   "none: build it with collect_components(get_plugin_manager()))") from None
             if close:
                 hint = f"; did you mean {close[0]!r}?"
             if name in OPTIONAL_PLUGINS:
