@@ -11,8 +11,9 @@ A decision-maker (policy, condition, reconstructor) must decide the same on the 
 observations (run twice, nothing redrawn) and pass the integrity check: for every stream of
 the world that I does not show, run again with that stream alone redrawn, it must decide the
 same until what it observes differs. Each run is made in a fresh process (forked where the
-platform can), under a seed and a salt drawn anew for each check, with the global generators
-(numpy's, random's, torch's) seeded at random in it. Each failure raises ``AssertionError``
+platform can) with a private, empty HOME and temporary folder, under a seed and a salt drawn
+anew for each check, with the global generators (numpy's, random's, torch's) seeded at random
+in it. Each failure raises ``AssertionError``
 with what broke.
 
 It is a linter for honest mistakes, not a gate: code that means to peek can recognise the check,
@@ -34,7 +35,9 @@ import multiprocessing
 import os
 import random
 import secrets
+import shutil
 import sys
+import tempfile
 import traceback
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -206,9 +209,16 @@ def _run(mission: Mission, registry: Any, ids: list[int], redraw: tuple[str, ...
 
 
 def _fresh_child(job: Callable[[], Any], conn: Any) -> None:
-    """In a forked child: seed the global generators at random (a method that uses them is
-    told apart from one that peeks), run the job, send back its result or its exception."""
+    """In a forked child: a private, empty HOME and temporary folder (no run finds what another
+    left there, such as a memo of the missions seen), the global generators seeded at random (a
+    method that uses them is told apart from one that peeks), the job run, its result or its
+    exception sent back."""
+    private = tempfile.mkdtemp(prefix="ata-check-")
     try:
+        for name in ("HOME", "TMPDIR", "TEMP", "TMP"):
+            os.environ[name] = os.path.join(private, "home" if name == "HOME" else "tmp")
+            os.makedirs(os.environ[name], exist_ok=True)
+        tempfile.tempdir = os.environ["TMPDIR"]
         seed = int.from_bytes(os.urandom(4), "little")
         np.random.seed(seed)
         random.seed(seed)
@@ -226,6 +236,7 @@ def _fresh_child(job: Callable[[], Any], conn: Any) -> None:
                    out[2] if out[0] == "error" else ""))
     finally:
         conn.close()
+        shutil.rmtree(private, ignore_errors=True)
 
 
 def _in_fresh_processes(jobs: list[Callable[[], Any]], workers: int = 2) -> list[Any]:

@@ -88,3 +88,33 @@ def test_the_check_mission_has_no_fixed_shape():
     shapes = {tuple(check_team(seed).values()) for seed in range(40)}
     assert len(shapes) > 20
     assert {s[1] for s in shapes} == {2, 3, 4} and len({s[3] for s in shapes}) > 4
+
+
+class MemoGreedy(GreedyPolicy):
+    """Greedy that keeps a memo in HOME and in the temporary folder, and decides otherwise
+    once it finds one: what recognising a check by its missions seen takes."""
+
+    name = "memo_greedy"
+
+    @hookimpl
+    def ata_initial_allocation(self, ctx):
+        import os
+        import tempfile
+        from pathlib import Path
+        memos = [Path(os.path.expanduser("~")) / ".ata_memo",
+                 Path(tempfile.gettempdir()) / "ata_memo"]
+        seen = any(m.exists() for m in memos)
+        for m in memos:
+            m.write_text("seen")
+        allocation = super().ata_initial_allocation(ctx)
+        if seen:                     # another legal allocation: no human takes part
+            allocation = type(allocation)(allocation.robot, allocation.navigator * 0 - 1,
+                                          allocation.classifier * 0 - 1)
+        return allocation
+
+
+def test_no_check_run_finds_what_another_left_in_home_or_temp(monkeypatch, tmp_path):
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    (tmp_path / "home").mkdir()
+    check_component("policy", MemoGreedy, name="memo_greedy", seed=3)
+    assert not (tmp_path / "home" / ".ata_memo").exists()
