@@ -77,6 +77,7 @@ KINDS: dict[str, tuple[str, tuple[str, ...], str]] = {
                                           "show_humans.png", "show_map.gif"),
              "replace them with ata show --out {dir}"),
     "report": ("a report", ("report.md", "curves.md"), "replace it with ata report --out {dir}"),
+    "site": ("a results page", ("site.json",), "rebuild it with ata site ... --out {dir}"),
 }
 """The kinds of folder the commands write: what each is, the files that mark it (the first
 kind whose file is there wins: a report is written into the folder it reads), and the command

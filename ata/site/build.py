@@ -1,0 +1,180 @@
+"""`ata site`: the results page of published sets and result folders, written as one static
+folder that any web server can host (no network at view time).
+
+The folder holds index.html (the sets, a leaderboard per setting and level, `ata report`'s
+figures), a page per method of each set, site.css and site.js, the figures as PNG and SVG,
+site.json (the leaderboards' numbers) and verified.json (the reruns that make a set
+"reproduced", `ata.site.verify`). The same sets, code and records give the same HTML and JSON
+files byte for byte: nothing in them holds a date or a machine's path.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+from ata.core.errors import MissionError
+from ata.results.report import (ABLATION_PREFIX, DEFAULT_REFERENCE, Report, figure_caption, figures as draw,
+                                pyplot)
+from ata.results.rows import RESAMPLES
+from ata.runtime.folders import prepare_out_dir, refuse_other_kind, writing
+from ata.site import assets, pages
+from ata.site.board import Board, build_board, merged, report_cells, report_paired
+from ata.site.sources import Source, load_source
+from ata.site.verify import installed_code, read_records, tier, verify
+
+MARK = "site.json"
+"""The file that marks a folder as a results page (`ata.runtime.folders.KINDS`)."""
+
+
+@dataclass
+class Site:
+    out: Path
+    sources: list[Source]
+    board: Board
+    tiers: dict[int, pages.Tier]
+    files: list[str]
+
+
+def build_site(specs: list[str], out: str | Path, *, base: str | None = None,
+               verify_per_cell: int = 0, verified: list[str | Path] = (),
+               with_figures: bool = True, draw_figures: bool = True,
+               resamples: int = RESAMPLES, command: str | None = None,
+               notify: Callable[[str], None] | None = None) -> Site:
+    """Read the sets (`published`, `published:NAME|PATH`, result folders), rerun
+    `verify_per_cell` scenarios of every method and cell of each published set when asked,
+    and write the page into `out`, whole (a folder there is replaced only if it is a page).
+    `draw_figures=False` names the figures in the page without drawing them (for a test that
+    compares a page's HTML and JSON, which do not depend on matplotlib's version)."""
+    if not specs:
+        raise MissionError("", None, "give published sets or result folders: ata site "
+                           "published runs/mine -o site")
+    out = Path(out)
+    refuse_other_kind(out, "site")
+    if out.is_dir() and any(out.iterdir()) and not (out / MARK).is_file():
+        raise MissionError("--out", None, f"{out} holds files and is not a results page "
+                           f"(no {MARK}); choose another folder")
+    if with_figures and draw_figures:
+        pyplot()                # a missing matplotlib fails before anything is read or run
+    sources = [load_source(s) for s in specs]
+    if verify_per_cell and not any(src.kind == "published" for src in sources):
+        raise MissionError("--verify", None, "no published set to rerun: --verify reruns a "
+                           "sample of each published set (ata publish a folder first)")
+    records = read_records(list(verified))
+    codes = {k: installed_code(src) for k, src in enumerate(sources) if src.kind == "published"}
+    for k, src in enumerate(sources):
+        if verify_per_cell and src.kind == "published":
+            if notify:
+                notify(f"rerunning {verify_per_cell} scenario(s) of every method and cell of "
+                       f"{src.name}")
+            records.append(verify(src, verify_per_cell))
+    tiers = {k: tier(src, records, codes.get(k)) for k, src in enumerate(sources)}
+    board = build_board(sources, base, resamples)
+    command = command or "ata site " + " ".join(s.spec for s in sources) + " -o site"
+    files: dict[str, bytes] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        shown = _figures(board, sources, Path(tmp), draw_figures) if with_figures else []
+        for path in sorted(Path(tmp).iterdir()):
+            files[path.name] = path.read_bytes()
+    files["index.html"] = pages.index_html(sources, board, tiers, shown, command).encode()
+    for k, src in enumerate(sources):
+        for name, info in src.methods.items():
+            entries = [e for e in board.entries if e.source is src and e.method == name]
+            if entries:
+                files[pages.page_name(src, name)] = pages.method_html(
+                    src, info, entries[0].label, entries, tiers[k], board.base).encode()
+    files["site.css"] = assets.CSS.encode()
+    files["site.js"] = assets.JS.encode()
+    used = [t[1] for t in tiers.values() if t[1] is not None]
+    files["verified.json"] = (json.dumps(used, indent=1, sort_keys=True) + "\n").encode()
+    files[MARK] = (json.dumps(site_data(sources, board, tiers, command), indent=1,
+                              sort_keys=True) + "\n").encode()
+    _write(out, files)
+    return Site(out, sources, board, tiers, sorted(files))
+
+
+def _figures(board: Board, sources: list[Source], folder: Path,
+             draw_them: bool = True) -> list[tuple[str, str]]:
+    """`ata report`'s figures of the merged rows into `folder`: (stem, caption) of each."""
+    res = merged(sources)
+    reference = DEFAULT_REFERENCE if DEFAULT_REFERENCE in res.methods else board.base
+    report = Report(reference=reference, results=res, cells=report_cells(board))
+    paired = report_paired(board)
+    stems = planned(report, paired)
+    if draw_them:
+        drawn = [p.stem for p in draw(report, folder, paired) if p.suffix == ".png"]
+        if drawn != stems:
+            raise AssertionError(f"figures drawn {drawn}, planned {stems}")
+    return [(stem, figure_caption(stem, report, paired).replace("`", "")) for stem in stems]
+
+
+def planned(report: Report, paired: list) -> list[str]:
+    """The stems of the figures `ata.results.report.figures` draws of `report` (it skips those
+    without data)."""
+    cells = report.cells
+    out = [f"fig_setting_{s}" for s in report.results.settings
+           if any(c.setting == s for c in cells)]
+    if any(c.method.startswith(ABLATION_PREFIX) for c in cells):
+        out.append("fig_ablations")
+    return out + (["fig_paired"] if paired else [])
+
+
+def _number(x: Any) -> Any:
+    return None if isinstance(x, float) and not math.isfinite(x) else x
+
+
+def site_data(sources: list[Source], board: Board, tiers: dict[int, pages.Tier],
+              command: str) -> dict[str, Any]:
+    """site.json: the sets and every leaderboard row, for programs."""
+    order = {id(src): k for k, src in enumerate(sources)}
+    sets = [{"name": src.name, "spec": src.spec, "release": src.release, "tier": tiers[k][0],
+             "tier_reason": tiers[k][2], "ata": src.ata, "rows_sha256": src.digest,
+             "seed_public": src.seed_public, "isolated": src.isolated,
+             "machine": src.machine, "packages": src.packages}
+            for k, src in enumerate(sources)]
+    rows = []
+    for e in board.entries:
+        info = e.source.methods.get(e.method)
+        rows.append({
+            "set": e.source.name, "tier": tiers[order[id(e.source)]][0], "method": e.label,
+            "setting": e.setting, "uncertainty": e.level, "scenarios": e.n,
+            "mean": _number(e.mean), "ci95": [_number(e.low), _number(e.high)],
+            "fraction_of_u": _number(e.fraction_of_u), "paired_scenarios": e.paired_n,
+            "diff_to_base": [_number(x) for x in e.diff] if e.paired_n else None,
+            "unpaired": e.unpaired or None,
+            "p_beats_base": _number(e.beats), "time_per_scenario_s": e.time_s,
+            "training_seeds": info.training_seeds() if info and info.learned else None})
+    return {"command": command, "base": board.base, "sets": sets, "rows": rows}
+
+
+def _write(out: Path, files: dict[str, bytes]) -> None:
+    """The page's files as the folder `out`, whole: written in a folder beside it that then
+    takes its name (an earlier page there is replaced once the new one is whole)."""
+    target = Path(os.path.abspath(out))
+    prepare_out_dir(target.parent)
+    tmp = target.with_name(f".{target.name}.{os.getpid()}.new")
+    old = target.with_name(f".{target.name}.{os.getpid()}.old")
+    try:
+        shutil.rmtree(tmp, ignore_errors=True)
+        tmp.mkdir()
+        with writing(tmp):
+            for name, data in files.items():
+                (tmp / name).write_bytes(data)
+            had = target.exists()
+            if had:
+                os.rename(target, old)
+            try:
+                os.rename(tmp, target)
+            except OSError:
+                if had:                 # the earlier page stays as it was
+                    os.rename(old, target)
+                raise
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+        shutil.rmtree(old, ignore_errors=True)
