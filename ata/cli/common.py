@@ -64,6 +64,7 @@ def user_errors(func: Callable) -> Callable:
 
         from ata.core.errors import ContractError, MissionError   # on use: start-up time
         from ata.experiment.execute import Interrupted   # on use: start-up time
+        from ata.runtime.executors import WorkerDied   # on use: start-up time
         try:
             return func(*args, **kwargs)
         except (ContractError, MissionError, pluggy.PluginValidationError) as exc:
@@ -76,6 +77,10 @@ def user_errors(func: Callable) -> Callable:
         except Interrupted as exc:
             note(str(exc))
             raise typer.Exit(130) from None
+        except WorkerDied as exc:
+            err_console.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False,
+                              soft_wrap=True)
+            raise typer.Exit(1) from None
         except SystemExit as exc:
             # ata itself ends a command with typer.Exit: a SystemExit comes from code the
             # command loaded (a method file calling sys.exit at import), which would otherwise

@@ -9,6 +9,7 @@ import multiprocessing
 import os
 import pickle
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable, Iterator, Sequence
 
 from ata.core.errors import ContractError, MissionError
@@ -90,7 +91,14 @@ class ProcessExecutor(Executor):
                 # when another one failed at the same time
                 for future in sorted(done, key=lambda f: f.exception() is not None):
                     i = pending.pop(future)
-                    yield i, pickle.loads(future.result())
+                    try:
+                        answer = future.result()
+                    except BrokenProcessPool:
+                        codes = sorted({p.exitcode for p in getattr(pool, "_processes",
+                                                                   {}).values()
+                                        if p.exitcode not in (None, 0)})
+                        raise WorkerDied(codes) from None
+                    yield i, pickle.loads(answer)
             finished = True
         finally:
             if not finished:
@@ -110,6 +118,19 @@ class ProcessExecutor(Executor):
 class WorkerError(RuntimeError):
     """An error raised in a worker that cannot cross back as itself (it does not survive
     pickling): its type and message, the worker's traceback chained below it."""
+
+
+class WorkerDied(WorkerError):
+    """A worker process ended without an answer (a component called ``os._exit`` or crashed,
+    or the system killed the process, for memory say); the units that finished are kept."""
+
+    def __init__(self, codes: list[int]):
+        how = ", ".join(f"signal {-c}" if c < 0 else f"exit code {c}" for c in codes)
+        super().__init__(f"a worker process ended without an answer{f' ({how})' if how else ''}: "
+                         "a component ended or crashed the process, or the system killed it "
+                         "(memory: try fewer --workers); the units that finished are saved, "
+                         "and the same command with the same --out resumes the rest")
+        self.codes = codes
 
 
 def _plainly(fn: Callable[[Any], Any], data: bytes) -> bytes:
