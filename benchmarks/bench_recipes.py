@@ -1,0 +1,188 @@
+"""Each built-in training recipe's training time on this machine beside its goal, and the
+held-out paired difference of newly trained weights against the shipped ones.
+
+Usage: python benchmarks/bench_recipes.py [--quick] [--only ata_hrl,tr_pomdp,atrl_tr]
+           [--trained RECIPE=DIR ...] [--paired EVAL_DIR --method NAME] [--skip-timing]
+
+The recipes and their goals (issue 60): ATA-HRL (a) (ata/missions/train_ata_hrl.toml) at most
+15 minutes, TR-POMDP (train_tr_pomdp.toml) and AtRL-TR (train_atrl_tr.toml) at most 30, on this
+machine's cores (docs/training.md times them on 2).
+
+Training time, by default *extrapolated*: the trainer of each recipe is built as `ata train`
+builds it and a few of its own calls are timed, then each part is scaled linearly to the
+recipe's counts. ATA-HRL: `bench_training.recipe_estimate` (teacher rollouts, aux steps, ITA
+and CTR steps, one validation of each phase and a checkpoint write). TR-POMDP and AtRL-TR: DQN
+steps at indices spread over the recipe (epsilon decays over the steps; the replay fills as it
+would), one validation and one checkpoint write (with its replay buffers). A full recipe takes
+40 to 110 minutes on 2 cores, which this does not spend.
+
+`--trained RECIPE=DIR` reads instead a finished training folder's *measured* time: its
+trained.json (`wall_s`, the trainer's own clock), or, for a folder of seeds, each seed's.
+
+`--paired EVAL_DIR --method NAME` pairs an evaluation of new weights (`ata eval` or `ata run` on
+the held-out scenarios of the published set: seed 0, 500 scenarios a cell) with the published
+rows of NAME (the shipped weights), on `expected_score` (the points in expectation over the
+classification outcomes): A - B with its 95% interval (two-level across seeds where either has
+several) and P(a seed of A beats a seed of B). For weights trained with `ata train -o DIR`:
+
+    ata eval DIR -n 500 -o runs/new-eval          # DIR: a run folder or a folder of seeds
+    python benchmarks/bench_recipes.py --skip-timing --paired runs/new-eval --method ATA-HRL
+
+or both at once: `--skip-timing --weights DIR --method ATA-HRL` (DIR-heldout holds the rows).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+
+import bench_training  # noqa: E402
+from ata.session import build_trainer, load_session, training_mission_for  # noqa: E402
+
+RECIPES = {
+    # name: (label, plugins of its training mission, goal in minutes)
+    "ata_hrl": ("ATA-HRL (a)", ["ctr", "aux"], 15),
+    "tr_pomdp": ("TR-POMDP", ["trp"], 30),
+    "atrl_tr": ("AtRL-TR", ["ita", "trp"], 30),
+}
+
+
+def dqn_estimate(plugins: list[str], steps: int = 8) -> tuple[list[tuple], dict]:
+    """A tr_pomdp recipe's wall time by part, from `steps` DQN steps at indices spread over its
+    steps (their epsilon; the replay fills over them, as in the recipe's first minutes), one
+    validation and one checkpoint write (with the replay as it then is): (part, seconds, calls,
+    recipe's calls, extrapolated seconds) rows, and the recipe's settings."""
+    session = load_session(str(training_mission_for(plugins)), [])
+    trainer = build_trainer(session)
+    t = trainer.t
+    torch.set_num_threads(t.threads)
+    at = np.linspace(0, t.steps - 1, steps).round().astype(int)
+    t0 = time.perf_counter()
+    for k in at:
+        trainer.step(int(k))
+    step_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    trainer.validate()
+    val_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        torch.save(trainer.checkpoint(), f"{tmp}/checkpoint.pt")
+    save_s = time.perf_counter() - t0
+    vals = bench_training.validations(t.steps, t.eval_every) - 1   # none at step 0 here
+    rows = [("DQN steps", step_s, steps, t.steps),
+            ("validations", val_s, 1, vals),
+            ("checkpoint writes", save_s, 1, t.steps // t.checkpoint_every + vals)]
+    return [(p, s, n, m, s / n * m) for p, s, n, m in rows], \
+        {"steps": t.steps, "batch_size": t.batch_size, "updates": t.updates}
+
+
+def trained_time(folder: Path) -> tuple[float, str]:
+    """Minutes of training a finished folder measured (trained.json's wall_s), and what: the
+    run, or each seed of a folder of seeds (their mean, the longest)."""
+    from ata.training.folders import is_seeds_folder, read_seeds
+    dirs = read_seeds(folder)["dirs"] if is_seeds_folder(folder) else [folder]
+    walls = []
+    for d in dirs:
+        path = d / "trained.json"
+        if not path.is_file():
+            raise SystemExit(f"{path}: no trained.json (the run has not finished)")
+        walls.append(float(json.loads(path.read_text())["wall_s"]) / 60)
+    if len(walls) == 1:
+        return walls[0], f"measured, {folder}"
+    return float(np.mean(walls)), (f"measured, mean of {len(walls)} seeds (longest "
+                                   f"{max(walls):.1f} min), {folder}")
+
+
+def paired(eval_dir: Path, method: str, published: str = "published") -> None:
+    """EVAL_DIR's methods (seeds grouped) - the published METHOD on expected_score."""
+    from ata.core.errors import MissionError
+    from ata.published import sets
+    from ata.results import seeds
+    from ata.results.rows import read_results
+    mine = read_results(eval_dir)
+    theirs, manifest, where = sets.read_published(published)
+    try:
+        sets.check_pairing(mine, eval_dir, manifest, [method])
+    except MissionError as exc:
+        print(f"paired difference: cannot pair with {where}: {exc}")
+        return
+    column = "expected_score" if "expected_score" in mine.columns else "score"
+    tables = seeds.published_tables(mine, theirs, [method], column=column)
+    for table in tables:
+        print(f"{table.title} ({column}, {where})")
+        for row in [table.header, *table.rows]:
+            print("  " + " | ".join(row))
+    if not tables:
+        print(f"paired difference: no scenario of {eval_dir} is in {where}'s {method} rows")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true",
+                        help="fewer calls timed: ATA-HRL 10 aux, 1 ITA, 1 CTR step; DQN 4 steps")
+    parser.add_argument("--only", default=",".join(RECIPES), help="recipes to time")
+    parser.add_argument("--trained", action="append", default=[], metavar="RECIPE=DIR",
+                        help="read RECIPE's time from a finished training folder instead")
+    parser.add_argument("--skip-timing", action="store_true", help="time no recipe")
+    parser.add_argument("--paired", type=Path, metavar="EVAL_DIR",
+                        help="an evaluation of new weights on the published scenarios")
+    parser.add_argument("--weights", type=Path, metavar="DIR",
+                        help="a training run folder or folder of seeds: evaluate it (ata eval "
+                             "DIR -n SCENARIOS) into DIR-heldout, then pair it as --paired")
+    parser.add_argument("--scenarios", type=int, default=500,
+                        help="held-out scenarios a cell for --weights (default 500)")
+    parser.add_argument("--method", default="ATA-HRL", help="the published method of --paired")
+    parser.add_argument("--published", default="published", help="the published set")
+    args = parser.parse_args()
+    trained = dict(item.split("=", 1) for item in args.trained)
+    unknown = [r for r in [*trained, *args.only.split(",")] if r not in RECIPES]
+    if unknown:
+        parser.error(f"no recipe {unknown[0]!r}; recipes: {', '.join(RECIPES)}")
+    summary = []
+    for name in [] if args.skip_timing else args.only.split(","):
+        label, plugins, goal = RECIPES[name]
+        if name in trained:
+            minutes, how = trained_time(Path(trained[name]))
+        else:
+            if name == "ata_hrl":
+                calls = (10, 1, 1) if args.quick else (20, 2, 1)
+                rows = bench_training.recipe_estimate(*calls)
+            else:
+                rows, _ = dqn_estimate(plugins, 4 if args.quick else 8)
+            for part, sec, n, m, est in rows:
+                print(f"[{name}] {part}: {sec:.1f} s for {n} -> {est:.0f} s for the recipe's {m}",
+                      flush=True)
+            minutes = sum(r[4] for r in rows) / 60
+            how = "extrapolated linearly from the calls above to the recipe's counts"
+        verdict = "meets it" if minutes <= goal else f"{minutes / goal:.1f}x over"
+        summary.append(f"{label:12s} {minutes:6.1f} min   goal <= {goal} min ({verdict}); {how}")
+    if summary:
+        print(f"\nTraining time per recipe on this machine ({os.cpu_count()} cores; each "
+              "recipe's own torch `threads`):")
+        print("\n".join("  " + s for s in summary))
+    if args.weights:
+        args.paired = args.weights.with_name(args.weights.name + "-heldout")
+        print(f"\nata eval {args.weights} -n {args.scenarios} -o {args.paired}", flush=True)
+        subprocess.run([sys.executable, "-m", "ata.cli", "eval", str(args.weights), "-n",
+                        str(args.scenarios), "-o", str(args.paired), "-q"], check=True)
+    if args.paired:
+        paired(args.paired, args.method, args.published)
+    elif not args.skip_timing:
+        print("\nHeld-out paired difference against the shipped weights: train (ata train -o "
+              "DIR), ata eval DIR -n 500 -o EVAL, then --paired EVAL --method ATA-HRL")
+
+
+if __name__ == "__main__":
+    main()
