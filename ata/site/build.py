@@ -134,7 +134,8 @@ def site_data(sources: list[Source], board: Board, tiers: dict[int, pages.Tier],
     """site.json: the sets and every leaderboard row, for programs."""
     order = {id(src): k for k, src in enumerate(sources)}
     sets = [{"name": src.name, "spec": src.spec, "release": src.release, "tier": tiers[k][0],
-             "tier_reason": tiers[k][2], "ata": src.ata, "rows_sha256": src.digest,
+             "tier_reason": tiers[k][2], "ata": src.ata,
+             "model_revision": src.model_revision, "rows_sha256": src.digest,
              "seed_public": src.seed_public, "isolated": src.isolated,
              "machine": src.machine, "packages": src.packages}
             for k, src in enumerate(sources)]

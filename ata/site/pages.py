@@ -178,6 +178,7 @@ def method_html(source: Source, info: MethodInfo, label: str, entries: list[Entr
     packages = ", ".join(f"{k} {v}" for k, v in source.packages.items()) or "not recorded"
     facts = [("set", escape(_set_name(source))), ("tier", f"{_tier(name)} {escape(why)}"),
              ("ata", escape(source.ata or "not recorded")),
+             ("model revision", escape(source.model_revision or "not recorded")),
              ("git commit", escape(source.commit or "not recorded")),
              ("packages", escape(packages)),
              ("machine", escape(machine_text(source.machine)) if source.machine

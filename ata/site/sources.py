@@ -80,6 +80,7 @@ class Source:
     isolated: bool | None = None
     seed_public: bool = True
     digest: str | None = None       # a published set's rows_sha256
+    model_revision: str | None = None   # the benchmark model's revision a set names
     command: str = ""               # the command that made the rows
     locator: str = ""               # what reads it here (a published set's spec, a path)
 
@@ -122,7 +123,8 @@ def _published(spec: str) -> Source:
         isolated=_flag(manifest.get("isolated", manifest.get("isolate", _UNKNOWN))),
         seed_public=bool(public) if public is not None else
         not any(s.startswith("secret:") for s in seeds),
-        digest=manifest.get("rows_sha256"), locator=spec)
+        digest=manifest.get("rows_sha256"), locator=spec,
+        model_revision=_text(manifest.get("model_revision")))
     if isinstance(manifest.get("packages"), dict):
         source.packages.update({str(k): str(v) for k, v in manifest["packages"].items()})
     _read_weights(source)
