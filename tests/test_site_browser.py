@@ -132,7 +132,10 @@ def test_a_method_page_opens_from_its_row_and_shows_its_provenance(page):
     link = driver.find_element("link text", "ATA-HRL")
     link.click()
     text = driver.find_element("tag name", "body").text
-    for word in ("code digest", "model revision", "training seeds: 12345", "ata run mission.toml",
+    shot = Path(tempfile.mkdtemp(prefix="ata-site-")) / "method.png"
+    driver.save_screenshot(str(shot))
+    print(f"screenshot: {shot}")
+    for word in ("code digest", "model revision", "trainer seed 12345", "ata run mission.toml",
                  "decisions isolated", "seed"):
         assert word in text, word
     assert _errors(driver) == []

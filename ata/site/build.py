@@ -2,7 +2,7 @@
 folder that any web server can host (no network at view time).
 
 The folder holds index.html (the sets, a leaderboard per setting and level, `ata report`'s
-figures), a page per method of each set, site.css and site.js, the figures as PNG and SVG,
+figures), a page per method of each set, site.css and site.js, the figures as PNG,
 site.json (the leaderboards' numbers) and verified.json (the reruns that make a set
 "reproduced", `ata.site.verify`). The same sets, code and records give the same HTML and JSON
 files byte for byte: nothing in them holds a date or a machine's path.
@@ -20,14 +20,14 @@ from pathlib import Path
 from typing import Any, Callable
 
 from ata.core.errors import MissionError
-from ata.results.report import (ABLATION_PREFIX, DEFAULT_REFERENCE, Report, figure_caption, figures as draw,
-                                pyplot)
+from ata.results.report import (ABLATION_PREFIX, DEFAULT_REFERENCE, Report, figure_caption,
+                                figures as draw, pyplot)
 from ata.results.rows import RESAMPLES
 from ata.runtime.folders import prepare_out_dir, refuse_other_kind, writing
 from ata.site import assets, pages
 from ata.site.board import Board, build_board, merged, report_cells, report_paired
 from ata.site.sources import Source, load_source
-from ata.site.verify import installed_code, read_records, tier, verify
+from ata.site.verify import read_records, tier, verify
 
 MARK = "site.json"
 """The file that marks a folder as a results page (`ata.runtime.folders.KINDS`)."""
@@ -67,20 +67,19 @@ def build_site(specs: list[str], out: str | Path, *, base: str | None = None,
         raise MissionError("--verify", None, "no published set to rerun: --verify reruns a "
                            "sample of each published set (ata publish a folder first)")
     records = read_records(list(verified))
-    codes = {k: installed_code(src) for k, src in enumerate(sources) if src.kind == "published"}
     for k, src in enumerate(sources):
         if verify_per_cell and src.kind == "published":
             if notify:
                 notify(f"rerunning {verify_per_cell} scenario(s) of every method and cell of "
                        f"{src.name}")
             records.append(verify(src, verify_per_cell))
-    tiers = {k: tier(src, records, codes.get(k)) for k, src in enumerate(sources)}
+    tiers = {k: tier(src, records) for k, src in enumerate(sources)}
     board = build_board(sources, base, resamples)
     command = command or "ata site " + " ".join(s.spec for s in sources) + " -o site"
     files: dict[str, bytes] = {}
     with tempfile.TemporaryDirectory() as tmp:
         shown = _figures(board, sources, Path(tmp), draw_figures) if with_figures else []
-        for path in sorted(Path(tmp).iterdir()):
+        for path in sorted(Path(tmp).glob("*.png")):     # PNG alone: half the bytes to host
             files[path.name] = path.read_bytes()
     files["index.html"] = pages.index_html(sources, board, tiers, shown, command).encode()
     for k, src in enumerate(sources):

@@ -164,8 +164,7 @@ def index_html(sources: list[Source], board: Board, tiers: dict[int, Tier],
         for stem, caption in figures:
             body += [f'<figure id="{escape(stem)}">',
                      f'<img src="{escape(stem)}.png" alt="{escape(stem)}">',
-                     f"<figcaption>{escape(caption)} "
-                     f'(<a href="{escape(stem)}.svg">SVG</a>)</figcaption>', "</figure>"]
+                     f"<figcaption>{escape(caption)}</figcaption>", "</figure>"]
     body.append('<p class="note">The same numbers, for programs: '
                 '<a href="site.json">site.json</a>.</p>')
     return _page("ATA results", body)
@@ -205,9 +204,10 @@ def method_html(source: Source, info: MethodInfo, label: str, entries: list[Entr
     body += ["</tbody>", "</table>", "<h2>Code</h2>",
              "<p>The digest of each component's code (ata's <code>plugins.toml</code>) and the "
              "version it came with.</p>", "<table>",
-             "<thead><tr><th>component</th><th>code digest</th><th>version</th></tr></thead>",
+             '<thead><tr><th class="text">component</th><th class="text">code digest</th>'
+             '<th class="text">version</th></tr></thead>',
              "<tbody>"]
-    body += [f'<tr><td>{escape(k)}</td><td class="text"><code>{escape(v)}</code></td>'
+    body += [f'<tr><td class="text">{escape(k)}</td><td class="text"><code>{escape(v)}</code></td>'
              f'<td class="text">{escape(info.versions.get(k, ""))}</td></tr>'
              for k, v in info.code.items()]
     body += ["</tbody>", "</table>", *_cells(source, info)]
@@ -225,11 +225,12 @@ def _cells(source: Source, info: MethodInfo) -> list[str]:
                 f"{escape(c['seed'] if source.seed_public else 'secret')}</dd>",
                 f"<dt>model revision</dt><dd><code>{escape(str(c.get('model')))}</code></dd>"]
         for w in info.weights.get(cell, []):
-            seeds = ", ".join(map(str, w.seeds)) or "not recorded"
+            seeds = (f"trainer seed {w.seeds[0]}; its training scenarios' root seeds "
+                     + ", ".join(map(str, w.seeds))) if w.seeds else "seeds not recorded"
             out.append(f"<dt>weights</dt><dd><code>{escape(w.spec)}</code> "
                        f"({escape(w.setting)}, digest <code>{escape(w.digest)}</code>; "
                        f"trained: {escape(', '.join(w.trained) or 'not recorded')}; "
-                       f"training seeds: {escape(seeds)})</dd>")
+                       f"{escape(seeds)})</dd>")
         out.append("</dl>")
         if source.kind == "published":
             spec = escape(source.spec)
