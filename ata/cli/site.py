@@ -39,6 +39,7 @@ def site(sets: List[str] = typer.Argument(
 
     words = ["ata site", *sets, "-o", str(out)]
     words += [f"--base {base}"] if base else []
+    words += [f"--verify {verify}"] if verify else []
     words += [f"--verified {p}" for p in verified or []]
     result = build_site(list(sets), out, base=base, verify_per_cell=verify,
                         verified=list(verified or []), with_figures=not no_figures,
