@@ -46,8 +46,9 @@ import numpy as np
 
 from ata import hookimpl
 from ata.core import references
+from ata.core.components import DECISION_KINDS
 from ata.core.errors import ContractError, MissionError
-from ata.core.kernel import DECISION_KINDS, Simulation, is_reference
+from ata.core.kernel import Simulation, is_reference
 from ata.core.mission import SLOTS, ComponentSlots, Mission, parse_override, validate
 from ata.core.registry import KINDS, collect_components, get_plugin_manager
 from ata.core.state import Allocation, DecisionContext

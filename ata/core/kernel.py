@@ -16,6 +16,7 @@ import pluggy
 
 from ata.core import hookspecs
 from ata.core.errors import ContractError, MissionError
+from ata.core.components import DECISION_KINDS, DECISION_SLOTS
 from ata.core.mission import SLOT_HOOKS, SLOT_KINDS, Mission
 from ata.core.registry import Register
 from ata.core.rng import BatchRNG, decision_rng
@@ -23,10 +24,6 @@ from ata.core.settings import for_team
 from ata.core.state import (Allocation, DecisionContext, DecisionView, EpisodeOutcome,
                             EpisodeRecord, Observation, SimState, read_only)
 
-DECISION_KINDS = frozenset({"policy", "condition", "reconstructor"})
-"""The decision-makers' kinds: built from the mission without its seed (`Mission.public`),
-they see the world through their DecisionContext (a reconstructor through a DecisionView)."""
-DECISION_SLOTS = ("reconstructors", "initial", "condition", "reallocation")
 WORLD_HOOKS = ("ata_setup", "ata_inherent", "ata_observe", "ata_inject",
                "ata_allocation_changed", "ata_advance", "ata_epoch_end", "ata_episode_end")
 """The phase hooks that receive the world (``sim``): a decision-maker may implement none of

@@ -17,7 +17,7 @@ from typing import Any
 import tomli_w
 
 from ata.core import references as refs_mod
-from ata.core.components import Components
+from ata.core.components import SLOTS, Components, Slot  # noqa: F401  (Slot: named here too)
 from ata.core.errors import MissionError
 from ata.core.seeds import seed_hash, secret_seed  # noqa: F401  (seed_hash: a test reads it here)
 from ata.core.settings import build_settings, for_team, param, settings_dict
@@ -90,25 +90,6 @@ class ComponentSlots:
                          "(none: nothing to train)")
 
 
-@dataclass(frozen=True)
-class Slot:
-    """A slot of ``[components]``: the kind of component it takes, and, for a single-choice slot
-    whose component alone is asked (a decision), the hook called on it; list slots
-    and the models take part in every phase hook."""
-
-    name: str
-    kind: str
-    hook: str | None = None
-
-
-SLOTS = (Slot("task_model", "task_model"), Slot("human_model", "human_model"),
-         Slot("robot_model", "robot_model"),
-         Slot("perturbations", "perturbation"), Slot("injectors", "injector"),
-         Slot("reconstructors", "reconstructor"),
-         Slot("initial", "policy", "ata_initial_allocation"),
-         Slot("condition", "condition", "ata_should_reallocate"),
-         Slot("reallocation", "policy", "ata_reallocate"))
-"""The slots a simulation fills, in hook-call order: the one place the slot model is written."""
 SLOT_KINDS = {s.name: s.kind for s in SLOTS}
 """Slot name -> the kind of component it takes."""
 SLOT_HOOKS = {s.name: s.hook for s in SLOTS if s.hook}

@@ -26,13 +26,9 @@ from typing import Any, Callable, Iterable
 import pluggy
 
 from ata.core import hookspecs
-from ata.core.components import ComponentInfo
+from ata.core.components import KINDS, ComponentInfo
 from ata.core.errors import MissionError
 
-KINDS = ("task_model", "human_model", "robot_model", "perturbation", "injector", "reconstructor",
-         "policy", "condition", "trainer")
-"""Component kinds. A ``policy`` may fill the initial and the reallocation slot; a ``trainer``
-is built by `ata train` only (``ata.training``)."""
 
 BUILTIN_GROUP = "ata.builtin"
 OPTIONAL_GROUP = "ata.optional"

@@ -33,8 +33,9 @@ from typing import Any
 
 import numpy as np
 
+from ata.core.components import DECISION_SLOTS
 from ata.core.errors import ContractError, MissionError
-from ata.core.kernel import DECISION_SLOTS, is_reference
+from ata.core.kernel import is_reference
 from ata.core.mission import SLOT_KINDS, Mission
 from ata.core.registry import Register
 from ata.isolation.remote import RemoteComponent, code_locations

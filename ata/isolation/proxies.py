@@ -18,15 +18,16 @@ from typing import Any, Iterator
 import numpy as np
 
 from ata import hookimpl
+from ata.core.components import DECISION_SLOTS
 from ata.core.errors import ContractError
-from ata.core.kernel import DECISION_SLOTS, Simulation
+from ata.core.kernel import Simulation
 from ata.core.mission import Mission
 from ata.core.registry import Register
 from ata.core.state import Allocation
 from ata.isolation.process import (TIMEOUT_COLUMN, DecisionProcess, DecisionTimeout,
                                     Isolation, acquire, release)
 from ata.runtime.frames import HEADER_ONLY, answer_limit
-from ata.runtime.messages import ALLOCATION, Op
+from ata.runtime.messages import ALLOCATION, OPERATIONS, SLOT_OPERATIONS, Op
 
 
 COLUMN = re.compile(r"[a-z][a-z0-9_]{0,63}")
@@ -92,7 +93,18 @@ class Link:
         return Allocation(*fields)
 
 
+PROXIES: dict[str, type["_Proxy"]] = {}
+"""The proxy of each decision slot of the kernel, by slot: a proxy class names the slot it
+serves (``class X(_Choice, serves="slot")``) and is found here; each forwards its slot's
+operation (`ata.runtime.messages.SLOT_OPERATIONS`)."""
+
+
 class _Proxy:
+    def __init_subclass__(cls, serves: str | None = None, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if serves is not None:
+            PROXIES[serves] = cls
+
     def __init__(self, link: Link, slot: str, name: str):
         self.link, self.slot = link, slot
         self.component_name = name
@@ -103,7 +115,7 @@ class _Proxy:
                                  reallocatable=np.asarray(ctx.reallocatable, dtype=bool), **extra)
 
 
-class ReconstructorsProxy(_Proxy):
+class ReconstructorsProxy(_Proxy, serves="reconstructors"):
     """The whole reconstructors slot: one round trip per epoch runs every reconstructor."""
 
     @hookimpl
@@ -121,15 +133,37 @@ class ReconstructorsProxy(_Proxy):
             out[name] = arr
 
 
-class InitialProxy(_Proxy):
+class _Choice(_Proxy):
+    """A single-choice decision slot: its hook forwards the slot's operation, with the context
+    and the hook's own arguments (`Operation.hook_args`). The answer is an allocation, checked
+    here (a call that timed out keeps the allocation in force; before the initial allocation
+    none is, so that call fails the batch), or one (B,) bool array (a call that timed out: False
+    in every scenario, nothing changes)."""
+
+    def _forward(self, ctx: Any, *args: Any) -> Any:
+        operation = OPERATIONS[SLOT_OPERATIONS[self.slot]]
+        where = f"{self.slot} policy {self.component_name!r}"
+        extra = {k: np.asarray(v) for k, v in zip(operation.hook_args, args)}
+        answer = self.link.call(self._ctx_request(operation.op, ctx, **extra), where,
+                                fatal=ctx.previous is None)
+        if operation.arrays == ALLOCATION:
+            return ctx.previous if answer is None else self.link.allocation(answer[1], where)
+        (name,) = operation.arrays
+        if answer is None:
+            return np.zeros(self.link.batch, dtype=bool)
+        arr = answer[1].get(name)
+        if arr is None or arr.dtype != bool or arr.shape != (self.link.batch,):
+            raise ContractError(f"{where} answered no ({self.link.batch},) bool array {name!r}")
+        return arr
+
+
+class InitialProxy(_Choice, serves="initial"):
     """The initial slot; it also answers for the whole method at the ends: the scenarios its
     weights saw (`ata_trained_on`) and its per-scenario results (`ata_episode_scored`)."""
 
     @hookimpl
     def ata_initial_allocation(self, ctx):
-        where = f"initial policy {self.component_name!r}"
-        _, arrays = self.link.call(self._ctx_request(Op.INITIAL, ctx), where, fatal=True)
-        return self.link.allocation(arrays, where)
+        return self._forward(ctx)
 
     @hookimpl
     def ata_trained_on(self):
@@ -173,37 +207,16 @@ class InitialProxy(_Proxy):
                 f"{TIMEOUT_COLUMN})")
 
 
-class ConditionProxy(_Proxy):
+class ConditionProxy(_Choice, serves="condition"):
     @hookimpl
     def ata_should_reallocate(self, ctx):
-        answer = self.link.call(self._ctx_request(Op.CONDITION, ctx),
-                                f"condition policy {self.component_name!r}", fatal=False)
-        if answer is None:
-            return np.zeros(self.link.batch, dtype=bool)   # the allocation in force stays
-        active = answer[1].get("active")
-        if active is None or active.dtype != bool or active.shape != (self.link.batch,):
-            raise ContractError(f"condition policy {self.component_name!r} answered no (B,) "
-                                "bool array")
-        return active
+        return self._forward(ctx)
 
 
-class ReallocationProxy(_Proxy):
+class ReallocationProxy(_Choice, serves="reallocation"):
     @hookimpl
     def ata_reallocate(self, ctx, active):
-        where = f"reallocation policy {self.component_name!r}"
-        answer = self.link.call(self._ctx_request(Op.REALLOCATE, ctx,
-                                                  active=np.asarray(active, dtype=bool)),
-                                where, fatal=False)
-        if answer is None:
-            return ctx.previous      # timed out: the allocation in force, unchanged
-        return self.link.allocation(answer[1], where)
-
-
-PROXIES: dict[str, type[_Proxy]] = {"reconstructors": ReconstructorsProxy,
-                                    "initial": InitialProxy, "condition": ConditionProxy,
-                                    "reallocation": ReallocationProxy}
-"""The proxy of each decision slot of the kernel; each forwards its slot's operation
-(`ata.runtime.messages.SLOT_OPERATIONS`)."""
+        return self._forward(ctx, active)
 
 
 def overrides(link: Link, mission: Mission) -> dict[str, Any]:

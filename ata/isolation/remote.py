@@ -35,8 +35,8 @@ from importlib import metadata
 from typing import Any
 
 from ata.core import references as refs_mod
+from ata.core.components import DECISION_SLOTS
 from ata.core.errors import ContractError, MissionError
-from ata.core.kernel import DECISION_SLOTS
 from ata.core.mission import SLOT_KINDS, TRAINER_SLOT
 from ata.core.registry import (COMPONENTS_GROUP, THIRD_PARTY_GROUP, ComponentInfo, Register,
                                collect_components, declared_components, get_plugin_manager)

@@ -29,10 +29,10 @@ import numpy as np
 import pluggy
 
 from ata.core import hookspecs
-from ata.core.errors import ContractError, MissionError
 from ata.core.channel import read_only
-from ata.core.kernel import (DECISION_SLOTS, REFERENCE_HOOK, build_component, is_reference,
-                             refuse_world_hooks)
+from ata.core.components import DECISION_SLOTS
+from ata.core.errors import ContractError, MissionError
+from ata.core.kernel import REFERENCE_HOOK, build_component, is_reference, refuse_world_hooks
 from ata.core.mission import SLOT_HOOKS, SLOT_KINDS, Mission, validate
 from ata.core.registry import collect_components, get_plugin_manager
 from ata.core.rng import StreamRNG
