@@ -22,9 +22,11 @@ def test_a_folder_of_seeds_gives_the_mean_of_its_measured_times(tmp_path):
     (tmp_path / "seeds.json").write_text(json.dumps({"seeds": [0, 1]}))
     for seed, wall in ((0, 600.0), (1, 900.0)):
         (tmp_path / f"seed-{seed}").mkdir()
-        (tmp_path / f"seed-{seed}" / "trained.json").write_text(json.dumps({"wall_s": wall}))
+        (tmp_path / f"seed-{seed}" / "trained.json").write_text(json.dumps(
+            {"wall_s": wall, "counters": {"ita": 800, "ctr": 30, "episodes": 99}}))
     minutes, how = bench_recipes.trained_time(tmp_path)
     assert minutes == pytest.approx(12.5) and "mean of 2 seeds (longest 15.0 min)" in how
+    assert "(800 ita, 30 ctr steps)" in how
     (tmp_path / "seed-1" / "trained.json").unlink()
     with pytest.raises(SystemExit, match="has not finished"):
         bench_recipes.trained_time(tmp_path)
