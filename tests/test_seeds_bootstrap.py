@@ -156,3 +156,27 @@ def test_report_markdown_gives_the_across_seed_tables(cli, tmp_path):
     out = cli("report", folder, "--markdown").output
     assert f"| mine (4 seeds) | {base.mean() + 3.5:.1f} [" in out and "| greedy (1 seed) | " in out
     assert "| mine - greedy | +3.5 [" in out and "; P 1.00 |" in out
+
+
+def test_compare_published_prints_the_across_seed_tables(cli, tmp_path, monkeypatch):
+    from ata.published import sets
+    base = np.random.default_rng(6).normal(40, 5, 15)
+    mine = write_results(tmp_path / "mine", {f"mine seed {s}": base + 2 + s for s in range(3)})
+    theirs = read_results(write_results(tmp_path / "pub", {"ATA-HRL": base, "greedy": base - 4}))
+    monkeypatch.setattr(sets, "read_published", lambda name: (theirs, {}, "SET"))
+    monkeypatch.setattr(sets, "check_pairing", lambda *a: None)
+    out = cli("compare", mine, "published", "--base", "ATA-HRL").output
+    assert "A - B across training seeds (B published)" in out
+    assert "mine - ATA-HRL" in out and "3 / 1" in out and "mine - greedy" not in out
+    assert "across training seeds" not in cli("compare", mine, "published", "--power").output
+
+
+def test_the_across_seed_reference_is_ata_hrl_by_its_seeds(tmp_path):
+    from ata.results.report import summarize
+    base = np.random.default_rng(8).normal(40, 5, 10)
+    res = read_results(write_results(tmp_path / "eval", {
+        "greedy": base, **{f"ATA-HRL seed {s}": base + 5 + s for s in range(2)}}))
+    report = summarize(res)
+    assert report.reference == "greedy"          # the per-method tables: no plain ATA-HRL row
+    assert report.seeds[1].rows[0][0] == "ATA-HRL - greedy"
+    assert summarize(res, "greedy").seeds[1].rows[0][0] == "greedy - ATA-HRL"

@@ -78,6 +78,8 @@ class Report:
 def summarize(res: Results, reference: str | None = None, resamples: int = RESAMPLES,
               seed: int = BOOTSTRAP_SEED) -> Report:
     """Every (method, setting, level) cell of the results, and P(reference beats method)."""
+    # across seeds, the default reference is ATA-HRL's seeds where it has no plain row
+    seeds_reference = reference or DEFAULT_REFERENCE
     if reference is None:
         reference = DEFAULT_REFERENCE if DEFAULT_REFERENCE in res.methods else res.methods[0]
     elif reference not in res.methods:
@@ -107,7 +109,7 @@ def summarize(res: Results, reference: str | None = None, resamples: int = RESAM
                     reallocations=nanmean(realloc[sel]) if realloc is not None else nan,
                     beats=beats, diff=diff))
     if has_seeds(res):
-        report.seeds = seed_tables(res, reference, resamples)
+        report.seeds = seed_tables(res, seeds_reference, resamples)
     return report
 
 

@@ -305,7 +305,7 @@ def seed_tables(res: Results, reference: str | None = None, resamples: int = RES
     grouped) with its mean, two-level interval, IQM and spread; then the reference's label
     (default: the first) against every other, A - B and P(a seed of A beats a seed of B)."""
     groups = seed_groups(res.methods)
-    ref = _group_of(groups, reference) or next(iter(groups))
+    ref = _group_of(groups, reference) or next(iter(groups))   # a name of no group: the first
     out = []
     for setting in res.settings:
         for level in res.levels:
