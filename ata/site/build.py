@@ -90,8 +90,12 @@ def build_site(specs: list[str], out: str | Path, *, base: str | None = None,
                     src, info, entries[0].label, entries, tiers[k], board.base).encode()
     files["site.css"] = assets.CSS.encode()
     files["site.js"] = assets.JS.encode()
-    used = [t[1] for t in tiers.values() if t[1] is not None]
-    files["verified.json"] = (json.dumps(used, indent=1, sort_keys=True) + "\n").encode()
+    # every record of these sets' rows (once each), whether it made its set reproduced or not:
+    # a page rebuilt from them says the same
+    digests = {src.digest for src in sources if src.digest}
+    kept = {json.dumps(r, sort_keys=True): r for r in records if r.get("rows_sha256") in digests}
+    files["verified.json"] = (json.dumps(list(kept.values()), indent=1, sort_keys=True)
+                              + "\n").encode()
     files[MARK] = (json.dumps(site_data(sources, board, tiers, command), indent=1,
                               sort_keys=True) + "\n").encode()
     _write(out, files)

@@ -147,8 +147,8 @@ def index_html(sources: list[Source], board: Board, tiers: dict[int, Tier],
             "sets below; nothing on this page is typed in. Click a column's header to sort.</p>",
             "<h2>Sets</h2>",
             "<p>A set is <em>reproduced</em> when ata's own rerun of a sample of its rows "
-            "(every method and cell) on the code installed when the page was built found them "
-            "identical, and <em>reported</em> otherwise.</p>",
+            "(every method and cell) on the code the set names found them identical, and "
+            "<em>reported</em> otherwise.</p>",
             *sets_table(sources, tiers),
             "<p>Per team setting and uncertainty level: the mean total team performance over "
             "the scenarios with its 95% percentile-bootstrap interval, the mean fraction of "

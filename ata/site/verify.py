@@ -1,10 +1,10 @@
 """Trust tiers: a published set is *reproduced* when ata's own rerun of a sample of its rows
-(every method and cell, `ata.experiment.reproduce.rerun_sample`) on the code installed now found
-them identical, and *reported* otherwise.
+(every method and cell, `ata.experiment.reproduce.rerun_sample`) on the code the set names (its
+methods' code digests) found them identical, and *reported* otherwise.
 
 `verify` reruns the sample and returns its record; the record names the set by its rows' digest
 and the code it ran by each method's component digests, so a record is only taken for the set
-it checked and the code it checked it on (`tier`).
+it checked, rerun on the code the set says made it (`tier`).
 """
 
 from __future__ import annotations
@@ -66,10 +66,12 @@ def read_records(paths: list[str | Path]) -> list[dict[str, Any]]:
     return out
 
 
-def tier(source: Source, records: list[dict[str, Any]],
-         code: dict[str, dict[str, str]] | None = None) -> tuple[str, dict[str, Any] | None, str]:
-    """(the set's tier, the record that makes it reproduced or None, why in a sentence).
-    `code`: `installed_code(source)`, if already computed."""
+def tier(source: Source, records: list[dict[str, Any]]) -> tuple[str, dict[str, Any] | None,
+                                                                 str]:
+    """(the set's tier, the record that makes it reproduced or None, why in a sentence). A
+    record counts for the set whose rows it reran (their digest) when the code it ran is the
+    code the set names (each method's component digests): the rerun reproduced the set as
+    published. It does not depend on the code installed when the page is built."""
     if source.kind != "published":
         return REPORTED, None, "a result folder: its rows are as its folder reports them"
     if not source.seed_public:
@@ -77,15 +79,17 @@ def tier(source: Source, records: list[dict[str, Any]],
     mine = [r for r in records if r.get("rows_sha256") == source.digest]
     if not mine:
         return REPORTED, None, "no rerun of a sample of its rows is recorded"
-    code = installed_code(source) if code is None else code
     for record in reversed(mine):
-        if record.get("code") != code:
+        ran = record.get("code") if isinstance(record.get("code"), dict) else {}
+        if not all(m.code and all((ran.get(name) or {}).get(k) == v for k, v in m.code.items())
+                   for name, m in source.methods.items()):
             continue
         if not record.get("identical") or record.get("cells") != sum(
                 len(m.cells) for m in source.methods.values()):
             return REPORTED, record, "a rerun of a sample of its rows found values that differ"
         n = record.get("per_cell")
         return REPRODUCED, record, (f"{n} scenario{'s' if n != 1 else ''} of every method and "
-                                    f"cell rerun with ata {record.get('ata')} on this code: "
-                                    "identical")
-    return REPORTED, None, "its recorded rerun ran other code than is installed now"
+                                    f"cell rerun with ata {record.get('ata')} on the code the "
+                                    "set names: identical")
+    return REPORTED, None, ("its recorded rerun ran other code than the set names: publish it "
+                            "again with the code installed now, then rerun")
