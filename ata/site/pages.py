@@ -11,7 +11,6 @@ from typing import Any
 
 from ata.results.report import title
 from ata.runtime.folders import safe_name
-from ata.runtime.machine import machine_text
 from ata.site.board import Board, Entry
 from ata.site.sources import MethodInfo, Source
 
@@ -78,6 +77,12 @@ def _head(names: list[str]) -> str:
     cls = {h: ' class="text"' if h in TEXT_HEADS else "" for h in names}
     return "<thead><tr>" + "".join(f'<th scope="col"{cls[h]}>{h}</th>' for h in names) \
         + "</tr></thead>"
+
+
+def _machine(info: dict[str, Any]) -> str:
+    """A machine record in a line: 'CPU, N cores (python X; numpy Y; torch Z)'."""
+    versions = "; ".join(f"{k} {info[k]}" for k in ("python", "numpy", "torch") if k in info)
+    return _short_machine(info) + (f" ({versions})" if versions else "")
 
 
 def _short_machine(info: dict[str, Any]) -> str:
@@ -180,7 +185,7 @@ def method_html(source: Source, info: MethodInfo, label: str, entries: list[Entr
              ("model revision", escape(source.model_revision or "not recorded")),
              ("git commit", escape(source.commit or "not recorded")),
              ("packages", escape(packages)),
-             ("machine", escape(machine_text(source.machine)) if source.machine
+             ("machine", escape(_machine(source.machine)) if source.machine
               else "not recorded"),
              ("decisions isolated", _isolated(source)), ("seed", _seed(source))]
     if record is not None:
