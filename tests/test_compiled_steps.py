@@ -53,7 +53,9 @@ def test_the_scalar_formulas_give_their_array_twins_bits():
 
 
 def test_the_load_formulas_give_humanload_bits():
-    # the grid's read (cum_at, utilisation) and a booking (book) against HumanLoad's arrays
+    # the grid's read (cum_at, utilisation: ata.model.grid's functions, compiled) and a booking
+    # (book) against HumanLoad's arrays, which run the same functions with numpy
+    from ata.model import grid
     from ata.model.load import BIN_S, HumanLoad
     rng = np.random.default_rng(1)
     E, H, window = 3, 4, 300.0
@@ -69,7 +71,7 @@ def test_the_load_formulas_give_humanload_bits():
     base = load._base(None)
     scalar_cum = [[[scalar.cum_at(flat, (e * H + h) * K, load.edges[-1], K, BIN_S, t[e, i, h])
                     for h in range(H)] for i in range(t.shape[1])] for e in range(E)]
-    assert np.array_equal(load._cum_at(t, base), scalar_cum)
+    assert np.array_equal(grid.cum_at(flat, base, load.edges[-1], K, BIN_S, t), scalar_cum)
     scalar_u = [[[scalar.utilisation(flat, (e * H + h) * K, load.edges[-1], K, BIN_S, window,
                                      t[e, i, h]) for h in range(H)]
                  for i in range(t.shape[1])] for e in range(E)]

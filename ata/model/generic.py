@@ -1,7 +1,8 @@
-"""What lets a formula of the model be written once, for arrays and for numbers: `select` and
-`as_float` are numpy's ``where`` and ``asarray(x, dtype=float)`` on arrays, and, in code
-compiled by `ata.model.compiling.jit`, ``a if cond else b`` and ``float(x)`` on numbers
-(`ata.model.scalar` registers that compiled form).
+"""What lets a formula of the model be written once, for arrays and for numbers: `select`,
+`as_float`, `as_int` and `take` are numpy's ``where``, ``asarray(x, dtype=float)``,
+``astype(int64)`` and ``take`` on arrays, and, in code compiled by `ata.model.compiling.jit`,
+``a if cond else b``, ``float(x)``, ``int(x)`` and ``a[i]`` on numbers (`ata.model.scalar`
+registers that compiled form).
 
 A formula written with these, numpy's ``maximum`` and ``minimum`` and plain arithmetic is one
 function: numpy runs it on arrays, and `ata.model.scalar` compiles that same function for the
@@ -23,3 +24,14 @@ def select(cond, a, b):
 def as_float(x):
     """`x` as floats (``np.asarray(x, dtype=float)``; compiled, on a number, ``float(x)``)."""
     return np.asarray(x, dtype=float)
+
+
+def as_int(x):
+    """`x` truncated to integers (``x.astype(np.int64)``; compiled, on a number, ``int(x)``)."""
+    return np.asarray(x).astype(np.int64)
+
+
+def take(a, index):
+    """The elements of the flat array `a` at `index` (``a.take(index)``; compiled, at an
+    integer, ``a[index]``)."""
+    return a.take(index)

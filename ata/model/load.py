@@ -7,11 +7,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ata.model import tables
+from ata.model import grid, tables
 from ata.model.plan import PlanStart
 
 BIN_S = 10.0
-"""Width of the time bins of the cumulative busy-time grid (the utilisation projection)."""
+"""Width of the time bins of the cumulative busy-time grid (`ata.model.grid`)."""
 
 
 class HumanLoad:
@@ -58,17 +58,6 @@ class HumanLoad:
                                                            self.start.now)
         return self._fatigue_greedy
 
-    def _cum_at(self, t: np.ndarray, base: np.ndarray) -> np.ndarray:
-        """Cumulative busy seconds of every human by times t (E, N, H) (linear within a bin);
-        `base` (E, 1, H): where each row's human's grid starts in the flat grid (`_base`)."""
-        x = np.clip(t, 0.0, self.edges[-1]) / BIN_S
-        k = np.minimum(x.astype(np.int64), self.edges.size - 2)
-        frac = x - k
-        flat = self.cum.reshape(-1)
-        at = base + k
-        lo = flat.take(at)
-        return lo + frac * (flat.take(at + 1) - lo)
-
     def _base(self, rows: np.ndarray | None) -> np.ndarray:
         """(E, 1, H): the flat index of each human's first grid edge, for rows of plans `rows`
         (default: row i is plan i)."""
@@ -79,11 +68,8 @@ class HumanLoad:
     def utilisation_at(self, t: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         """Projected busy share of [t - window, t] of every human, t (E, N, H); `rows` as in
         `classification`."""
-        w = self.window_s
-        base = self._base(rows)
-        busy = self._cum_at(t, base) - self._cum_at(t - w, base)
-        span = np.minimum(w, np.maximum(t, 1e-9))
-        return np.clip(busy / span, 0.0, 1.0)
+        return grid.utilisation(self.cum.reshape(-1), self._base(rows), self.edges[-1],
+                                self.edges.size, BIN_S, self.window_s, t)
 
     def classification(self, q: np.ndarray, d: np.ndarray, arrive: np.ndarray,
                        greedy: bool = False, rows: np.ndarray | None = None
@@ -122,7 +108,7 @@ class HumanLoad:
 
     def book(self, e: np.ndarray, h: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
         """Book human h of plan e busy over [a, b) (each (n,))."""
-        self.cum[e, h] += np.clip(self.edges[None, :] - a[:, None], 0.0, (b - a)[:, None])
+        self.cum[e, h] += grid.busy_ramp(self.edges[None, :], a[:, None], (b - a)[:, None])
         self.booked[e, h] += b - a
         self.free[e, h] = np.maximum(self.free[e, h], b)
         self.forget()

@@ -7,10 +7,10 @@ Most are not written here: `workload`, `human_success` and `expected_points` are
 `ata.model.greedy_score`'s, each compiled as it stands (`ata.model.generic` says how one
 function serves arrays and numbers; this module registers the compiled form of its helpers, and
 makes each shared formula callable from compiled code, so that one formula may call another).
-Written here is the compiled
-form of `ata.model.load.HumanLoad`'s grid, which its arrays read in bulk: `cum_at` and
-`utilisation` its grid read, `book` its booking, each in the order of operations of its array
-twin (tests/test_compiled_steps.py).
+`cum_at` and `utilisation` are
+`ata.model.grid`'s, the load grid's read that `ata.model.load.HumanLoad` runs on arrays; `book`,
+its booking of one (plan, human) in the load's arrays, adds `ata.model.grid.busy_ramp` as
+`HumanLoad.book` does.
 
 `jit` is the host's way of compiling (`ata.model.compiling`): cached, and compiled again when
 a file of `ata.model` changes; the first process to call a function compiles it (a few seconds).
@@ -22,7 +22,7 @@ import numpy as np
 from numba.core import types
 from numba.extending import overload, register_jitable
 
-from ata.model import fatigue, generic, greedy_score, tables
+from ata.model import fatigue, generic, greedy_score, grid, tables
 from ata.model.compiling import jit
 
 __all__ = ["jit", "workload", "human_success", "expected_points", "individual", "human_gain",
@@ -44,9 +44,24 @@ def _as_float(x):
     return None
 
 
+@overload(generic.as_int)
+def _as_int(x):
+    if isinstance(x, (types.Float, types.Integer)):
+        return lambda x: int(x)
+    return None
+
+
+@overload(generic.take)
+def _take(a, index):
+    if isinstance(a, types.Array) and isinstance(index, types.Integer):
+        return lambda a, index: a[index]
+    return None
+
+
 _SHARED = (tables.workload, tables.human_success, tables.expected_points, fatigue.individual,
            greedy_score.human_gain, greedy_score.human_net, greedy_score.option_value,
-           greedy_score.rate, greedy_score.option_rate)
+           greedy_score.rate, greedy_score.option_rate, grid.cum_at, grid.utilisation,
+           grid.busy_ramp)
 # each callable from compiled code as it stands, so that one calling another compiles too
 for _fn in _SHARED:
     register_jitable(nogil=True, error_model="numpy")(_fn)
@@ -62,26 +77,8 @@ rate = jit(greedy_score.rate)
 option_rate = jit(greedy_score.option_rate)
 
 
-@jit
-def cum_at(flat: np.ndarray, base: int, last_edge: float, n_edges: int, bin_s: float,
-           t: float) -> float:
-    """Cumulative busy seconds by time t on a grid of `n_edges` edges `bin_s` apart whose
-    values for one human start at flat[base] (linear within a bin)."""
-    x = min(max(t, 0.0), last_edge) / bin_s
-    k = min(int(x), n_edges - 2)
-    frac = x - k
-    lo = flat[base + k]
-    return lo + frac * (flat[base + k + 1] - lo)
-
-
-@jit
-def utilisation(flat: np.ndarray, base: int, last_edge: float, n_edges: int, bin_s: float,
-                window_s: float, t: float) -> float:
-    """Busy share of [t - window, t] from the grid (`ata.model.load.HumanLoad.utilisation_at`)."""
-    busy = (cum_at(flat, base, last_edge, n_edges, bin_s, t)
-            - cum_at(flat, base, last_edge, n_edges, bin_s, t - window_s))
-    span = min(window_s, max(t, 1e-9))
-    return min(max(busy / span, 0.0), 1.0)
+cum_at = jit(grid.cum_at)
+utilisation = jit(grid.utilisation)
 
 
 @jit
@@ -89,9 +86,6 @@ def book(cum: np.ndarray, booked: np.ndarray, free: np.ndarray, edges: np.ndarra
          h: int, a: float, b: float) -> None:
     """`HumanLoad.book` of one (plan, human): human h of plan e busy over [a, b), in the load's
     arrays (cum (E, H, edges), booked and free (E, H))."""
-    span = b - a
-    row = cum[e, h]
-    for k in range(edges.shape[0]):
-        row[k] += min(max(edges[k] - a, 0.0), span)
-    booked[e, h] += span
+    cum[e, h] += grid.busy_ramp(edges, a, b - a)
+    booked[e, h] += b - a
     free[e, h] = max(free[e, h], b)
