@@ -172,20 +172,22 @@ class AuxPhase:
                 "aux_latency_mse": f"{lat_mse.item():.5f}"}, 0
 
     def report(self) -> dict[str, float]:
-        """Held-out reconstruction errors (one teacher batch after the training ones) against
-        the raw observation's."""
+        """Held-out reconstruction errors (one teacher batch after the training ones): each
+        estimate's (``fatigue_mse``; ``robots_mse`` and ``robots_mae``, ``tasks_mse`` and
+        ``tasks_mae`` over the rows' columns) beside the same error of the observation taken as
+        it is (``..._observed``), which the reconstruction must beat."""
         data = self.rows(self.tr.s.aux_batches, 1)
         net = self.tr.net
         with torch.no_grad():
             _, f_mse, _ = self.losses(data, sample=False)
             observed = data["fatigue_in"][:, FATIGUE_IN.index("observed")]
             raw_f = ((observed - data["fatigue_target"]) ** 2).mean()
-            out = {"fatigue_mse": f_mse.item(), "fatigue_mse_raw": raw_f.item()}
+            out = {"fatigue_mse": f_mse.item(), "fatigue_mse_observed": raw_f.item()}
             for g in ("robots", "tasks"):
                 est, _ = net.latency[g](data[f"{g}_in"])
                 err, raw = est - data[f"{g}_target"], data[f"{g}_in"] - data[f"{g}_target"]
-                out[f"{g}_mse"], out[f"{g}_mse_raw"] = (err ** 2).mean().item(), \
+                out[f"{g}_mse"], out[f"{g}_mse_observed"] = (err ** 2).mean().item(), \
                     (raw ** 2).mean().item()
-                out[f"{g}_mae"], out[f"{g}_mae_raw"] = err.abs().mean().item(), \
+                out[f"{g}_mae"], out[f"{g}_mae_observed"] = err.abs().mean().item(), \
                     raw.abs().mean().item()
         return out
