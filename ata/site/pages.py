@@ -128,18 +128,21 @@ def sets_table(sources: list[Source], tiers: dict[int, Tier]) -> list[str]:
     head = ["set", "tier", "rows", "methods", "ata", "seed", "isolated", "machine"]
     rows = []
     for k, src in enumerate(sources):
-        name, _, why = tiers[k]
+        name = tiers[k][0]
         rows.append("<tr>" + "".join([
             _td(escape(_set_name(src)), src.name, "text"),
-            _td(f'{_tier(name)} <span class="note">{escape(why)}</span>', name, "text"),
+            _td(_tier(name), name, "text"),
             _td(f"{len(src.results.columns['method']):,}", len(src.results.columns["method"])),
             _td(str(len(src.results.methods)), len(src.results.methods)),
             _td(escape(src.ata or "not recorded"), src.ata or "", "text"),
             _td(_seed(src), _seed(src), "text"),
             _td(_isolated(src), _isolated(src), "text"),
             _td(escape(_short_machine(src.machine)), None, "text")]) + "</tr>")
+    notes = [f"<li>{escape(_set_name(src))}: {tiers[k][0]}, {escape(tiers[k][2])}.</li>"
+             for k, src in enumerate(sources)]
     return ['<div class="scroll"><table class="sortable" id="table-sets">', _head(head),
-            "<tbody>", *rows, "</tbody>", "</table></div>"]
+            "<tbody>", *rows, "</tbody>", "</table></div>", '<ul class="note">', *notes,
+            "</ul>"]
 
 
 def index_html(sources: list[Source], board: Board, tiers: dict[int, Tier],

@@ -91,5 +91,10 @@ def tier(source: Source, records: list[dict[str, Any]]) -> tuple[str, dict[str, 
         return REPRODUCED, record, (f"{n} scenario{'s' if n != 1 else ''} of every method and "
                                     f"cell rerun with ata {record.get('ata')} on the code the "
                                     "set names: identical")
-    return REPORTED, None, ("its recorded rerun ran other code than the set names: publish it "
-                            "again with the code installed now, then rerun")
+    last = mine[-1]
+    n = last.get("per_cell")
+    found = "identical rows" if last.get("identical") else "rows that differ"
+    return REPORTED, None, (f"a rerun of {n} scenario{'s' if n != 1 else ''} of every method "
+                            f"and cell with ata {last.get('ata')} found {found}, but on other "
+                            "code than the set names: publish the set again with that code, "
+                            "then rerun")
