@@ -52,13 +52,19 @@ class MethodInfo:
     """cell -> {mission, model, inputs, time_s, seed, scenarios}"""
     weights: dict[str, list[Weights]] = field(default_factory=dict)
     """cell -> the checkpoints it read (none: not a learned method)."""
+    seeds: list[int] | None = None
+    """The training seeds the set's manifest names for the method (``training_seeds``), if
+    it names them; else they are read from the checkpoints."""
 
     @property
     def learned(self) -> bool:
-        return any(self.weights.values())
+        return bool(self.seeds) or any(self.weights.values())
 
     def training_seeds(self) -> list[int]:
-        """The trainer seeds of every checkpoint this method read: one per training run."""
+        """The seeds of the training runs behind the method's weights: the manifest's, else
+        the trainer seed of every checkpoint it read (one per training run)."""
+        if self.seeds:
+            return sorted(self.seeds)
         seeds = {w.seeds[0] for ws in self.weights.values() for w in ws if w.seeds}
         return sorted(seeds)
 
@@ -106,8 +112,11 @@ def _published(spec: str) -> Source:
                            "inputs": dict(info.get("inputs", {})),
                            "time_s": info.get("time_per_scenario_s"),
                            "seed": str(info.get("seed")), "scenarios": info.get("scenarios")}
+        declared = entry.get("training_seeds")
         methods[name] = MethodInfo(name, dict(entry.get("code", {})),
-                                   dict(entry.get("versions", {})), cells)
+                                   dict(entry.get("versions", {})), cells,
+                                   seeds=[int(x) for x in declared]
+                                   if isinstance(declared, list) else None)
     machine = manifest.get("machine") or {}
     seeds = {c["seed"] for m in methods.values() for c in m.cells.values()}
     public = manifest.get("seed_public")
