@@ -123,6 +123,10 @@ def test_the_page_names_the_tier_beside_every_row_and_holds_no_path_or_link_out(
             assert "://" not in target and (site.out / target).is_file(), (page.name, target)
     data = json.loads((site.out / "site.json").read_text())
     assert [s["tier"] for s in data["sets"]] == [REPRODUCED, REPORTED]
+    # the folder's methods are paired with the set's greedy (the same model, the same scenarios)
+    paired = {r["method"]: r["paired_scenarios"] for r in data["rows"]}
+    assert paired == {"greedy": 0, "always": 2, "greedy [eval]": 2, "always [eval]": 2}
+    assert [r["diff_to_base"][0] for r in data["rows"] if r["method"] == "greedy [eval]"] == [0]
     assert json.loads((site.out / "verified.json").read_text()) == [record]
 
 
