@@ -138,6 +138,8 @@ def test_the_command_builds_a_page_and_refuses_a_folder_that_is_not_one(tiny, tm
             "always")
     assert r.exit_code == 0, r.output                            # a page is rebuilt in place
     assert "method &minus; always" in (tmp_path / "page" / "index.html").read_text()
+    r = cli("run", "builtin:greedy", "-n", "1", "-o", tmp_path / "page")   # a page is no run's
+    assert r.exit_code == 2 and "folder of a results page (site.json)" in r.output
     (tmp_path / "other").mkdir()
     (tmp_path / "other" / "notes.txt").write_text("mine")
     r = cli("site", str(tiny / "eval"), "-o", tmp_path / "other", "--no-figures")
