@@ -63,6 +63,12 @@ def build_site(specs: list[str], out: str | Path, *, base: str | None = None,
     if with_figures and draw_figures:
         pyplot()                # a missing matplotlib fails before anything is read or run
     sources = [load_source(s) for s in specs]
+    taken: set[str] = set()
+    for src in sources:                 # two sets of one name: the later one's pages apart
+        name, k = src.name, 2
+        while src.slug in taken:
+            src.name, k = f"{name}-{k}", k + 1
+        taken.add(src.slug)
     if verify_per_cell and not any(src.kind == "published" for src in sources):
         raise MissionError("--verify", None, "no published set to rerun: --verify reruns a "
                            "sample of each published set (ata publish a folder first)")
