@@ -357,12 +357,16 @@ def test_one_pass_and_the_deciding_episodes_alone_decode_as_every_episode_apart(
 
     taken, take = [], Decoder.take
     monkeypatch.setattr(Decoder, "take", lambda dec, rows: taken.append(rows) or take(dec, rows))
-    fast = run(False)
+    with monkeypatch.context() as m:                 # decoded step by step
+        m.setattr(D.fused, "fits", lambda dec: False)
+        fast = run(False)
     assert taken                                      # episodes were dropped on the way
+    compiled = run(False)                             # the compiled whole decode
     monkeypatch.setattr(D, "SHRINK", 0.0)            # never drop a finished episode
     slow = run(True)
-    assert fast.allocations.size and np.array_equal(fast.allocations, slow.allocations)
-    np.testing.assert_array_equal(fast.r_perf, slow.r_perf)
+    for got in (fast, compiled):
+        assert got.allocations.size and np.array_equal(got.allocations, slow.allocations)
+        np.testing.assert_array_equal(got.r_perf, slow.r_perf)
 
 
 def test_aux_reconstructs_only_the_parts_it_is_given():

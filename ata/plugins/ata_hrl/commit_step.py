@@ -33,36 +33,48 @@ def commit_step(active, p, r, n, c, robot_free, robot_xy, n_assigned, robot, nav
     """Commit (p, r, n, c) in every active episode; whether anyone's work was booked."""
     booked_any = False
     for e in range(active.shape[0]):
-        if not active[e]:
-            continue
-        pe, re, ne, ce = p[e], r[e], n[e], c[e]
-        if charge:          # re-briefs: the navigator's change first, then the classifier's
-            booked_any |= _rebrief(e, prev_nav[e, pe], ne, now, rebrief_s, touched, cum,
-                                   booked, free, edges)
-            booked_any |= _rebrief(e, prev_cls[e, pe], ce, now, rebrief_s, touched, cum,
-                                   booked, free, edges)
-        # the route: when the robot sets off (its navigator free), its travel, the quality
-        nav_class = skill[e, ne] if ne >= 0 else 1
-        v = speed[e, re] * (tab.skill_speed[nav_class] if ne >= 0 else 1.0)
-        depart = max(robot_free[e, re], free[e, ne]) if ne >= 0 else robot_free[e, re]
-        q = tab.quality[robot_type[e, re], kind[e, pe], nav_class]
-        gx = task_xy[e, pe, 0] - robot_xy[e, re, 0]
-        gy = task_xy[e, pe, 1] - robot_xy[e, re, 1]
-        travel = math.sqrt(gx * gx + gy * gy) / max(v, 1e-9)
-        leg = travel + capture_s
-        arrive = depart + leg
-        if ne >= 0:
-            scalar.book(cum, booked, free, edges, e, ne, arrive - leg, arrive)
-            booked_any = True
-        if ce >= 0:
-            begin = max(arrive, free[e, ce])
-            scalar.book(cum, booked, free, edges, e, ce, begin,
-                        begin + tab.t_bar[q, diff[e, pe]])
-            booked_any = True
-        robot_free[e, re] = arrive
-        robot_xy[e, re, 0] = task_xy[e, pe, 0]
-        robot_xy[e, re, 1] = task_xy[e, pe, 1]
-        n_assigned[e, re] += 1
-        robot[e, pe], nav[e, pe], cls[e, pe] = re, ne, ce
-        left[e, pe] = False
+        if active[e]:
+            booked_any |= commit_episode(e, p, r, n, c, robot_free, robot_xy, n_assigned, robot,
+                                         nav, cls, left, touched, prev_nav, prev_cls, charge, now,
+                                         rebrief_s, capture_s, speed, skill, robot_type, kind, diff,
+                                         task_xy, tab, cum, booked, free, edges)
+    return booked_any
+
+
+@jit
+def commit_episode(e, p, r, n, c, robot_free, robot_xy, n_assigned, robot, nav, cls, left, touched,
+                   prev_nav, prev_cls, charge, now, rebrief_s, capture_s, speed, skill, robot_type,
+                   kind, diff, task_xy, tab, cum, booked, free, edges):
+    """Commit (p[e], r[e], n[e], c[e]) in episode e; whether anyone's work was booked."""
+    booked_any = False
+    pe, re, ne, ce = p[e], r[e], n[e], c[e]
+    if charge:          # re-briefs: the navigator's change first, then the classifier's
+        booked_any |= _rebrief(e, prev_nav[e, pe], ne, now, rebrief_s, touched, cum,
+                               booked, free, edges)
+        booked_any |= _rebrief(e, prev_cls[e, pe], ce, now, rebrief_s, touched, cum,
+                               booked, free, edges)
+    # the route: when the robot sets off (its navigator free), its travel, the quality
+    nav_class = skill[e, ne] if ne >= 0 else 1
+    v = speed[e, re] * (tab.skill_speed[nav_class] if ne >= 0 else 1.0)
+    depart = max(robot_free[e, re], free[e, ne]) if ne >= 0 else robot_free[e, re]
+    q = tab.quality[robot_type[e, re], kind[e, pe], nav_class]
+    gx = task_xy[e, pe, 0] - robot_xy[e, re, 0]
+    gy = task_xy[e, pe, 1] - robot_xy[e, re, 1]
+    travel = math.sqrt(gx * gx + gy * gy) / max(v, 1e-9)
+    leg = travel + capture_s
+    arrive = depart + leg
+    if ne >= 0:
+        scalar.book(cum, booked, free, edges, e, ne, arrive - leg, arrive)
+        booked_any = True
+    if ce >= 0:
+        begin = max(arrive, free[e, ce])
+        scalar.book(cum, booked, free, edges, e, ce, begin,
+                    begin + tab.t_bar[q, diff[e, pe]])
+        booked_any = True
+    robot_free[e, re] = arrive
+    robot_xy[e, re, 0] = task_xy[e, pe, 0]
+    robot_xy[e, re, 1] = task_xy[e, pe, 1]
+    n_assigned[e, re] += 1
+    robot[e, pe], nav[e, pe], cls[e, pe] = re, ne, ce
+    left[e, pe] = False
     return booked_any

@@ -10,7 +10,7 @@ import numpy as np
 import torch
 
 from ata.core.state import Allocation
-from ata.plugins.ata_hrl import scorer_loop
+from ata.plugins.ata_hrl import fused, scorer_loop
 from ata.plugins.ata_hrl.decoder import Decoder
 from ata.plugins.ata_hrl.inputs import StepInputs
 from ata.plugins.ata_hrl.network import KINDS, NEG, AllocationNet, step_context
@@ -100,13 +100,19 @@ of its working set is (a finished episode's choices are masked: dropping it chan
 def decode(dec: Decoder, net: AllocationNet, emb: dict[str, torch.Tensor], choose: Chooser,
            *, residual: bool = True, trace: DecodeTrace | None = None) -> Allocation:
     """Decode every POI left in `dec` with the network's scorers (no gradient). Without a
-    trace, and taking the mode, the steps work on the episodes still deciding alone."""
+    trace, and taking the mode, the whole decode runs compiled (`fused`) where the fatigue
+    projections are of one curve, else the steps work on the episodes still deciding alone."""
     root, rows_in_root = dec, np.arange(dec.E)
     shrink = trace is None and choose is argmax_chooser
     # inference mode: nothing decoded here is differentiated (a trainer recomputes the log-
     # probabilities from the trace), and torch skips its autograd bookkeeping per call
     with torch.inference_mode():
         steps = _Steps(net, emb, choose, residual, trace)
+        if shrink and fused.fits(dec):
+            # the mode, nothing recorded: the whole decode in one compiled loop
+            fused.decode_mode(dec, steps.weights, steps.tokens["tasks"],
+                              steps.tokens["robots"], steps.cand_hidden, residual)
+            return dec.finish()
         while True:
             pi = dec.poi_inputs()
             active = pi.active

@@ -82,59 +82,73 @@ def project(x, w):
 @jit
 def _logits(context, feats, prior, mask, cand_h, tasks, robots, robot, task, residual,
             feat_w, feat_b, ctx_w, hid_w, hid_b, out_w, out_b, lin_w, lin_b, scale, out):
-    E, N, F = feats.shape
     d = tasks.shape[2]
     h = feat_b.shape[0]
-    zero = np.float32(0.0)
-    neg = np.float32(NEG)
     ctx = np.empty(d, np.float32)
     ctx_h = np.empty(h, np.float32)
     pre = np.empty(h, np.float32)
     hid = np.empty(h, np.float32)
-    for e in range(E):
-        ctx_done = False
-        for n in range(N):
-            if not mask[e, n]:
-                out[e, n] = neg
-                continue
-            v = scale * prior[e, n]
-            if residual:
-                if not ctx_done:             # the episode's context token, projected
-                    for i in range(d):
-                        if context == 0:
-                            ctx[i] = robots[e, robot[e], i]
-                        elif context == 1:
-                            ctx[i] = tasks[e, task[e], i]
-                        else:
-                            ctx[i] = tasks[e, task[e], i] + robots[e, robot[e], i]
-                    _project_row(ctx, ctx_w, ctx_h)
-                    ctx_done = True
-                f = feats[e, n]
+    for e in range(feats.shape[0]):
+        logits_row(context, feats[e], prior[e], mask[e], cand_h[e], tasks[e], robots[e],
+                   robot[e], task[e], residual, feat_w, feat_b, ctx_w, hid_w, hid_b, out_w,
+                   out_b, lin_w, lin_b, scale, out[e], ctx, ctx_h, pre, hid)
+
+
+@jit
+def logits_row(context, feats, prior, mask, cand_h, tasks, robots, robot, task, residual,
+               feat_w, feat_b, ctx_w, hid_w, hid_b, out_w, out_b, lin_w, lin_b, scale, out,
+               ctx, ctx_h, pre, hid):
+    """One episode's logits: feats (N, F), prior (N,) float32, mask (N,), cand_h (N, h),
+    tasks (P, d) and robots (R, d) its tokens, robot and task its context's indices, out (N,);
+    ctx (d,), ctx_h, pre and hid (h,) working arrays."""
+    N, F = feats.shape
+    d = tasks.shape[1]
+    h = feat_b.shape[0]
+    zero = np.float32(0.0)
+    neg = np.float32(NEG)
+    ctx_done = False
+    for n in range(N):
+        if not mask[n]:
+            out[n] = neg
+            continue
+        v = scale * prior[n]
+        if residual:
+            if not ctx_done:             # the episode's context token, projected
+                for i in range(d):
+                    if context == 0:
+                        ctx[i] = robots[robot, i]
+                    elif context == 1:
+                        ctx[i] = tasks[task, i]
+                    else:
+                        ctx[i] = tasks[task, i] + robots[robot, i]
+                _project_row(ctx, ctx_w, ctx_h)
+                ctx_done = True
+            f = feats[n]
+            for j in range(h):
+                pre[j] = feat_b[j]
+            for i in range(F):
+                fi = f[i]
                 for j in range(h):
-                    pre[j] = feat_b[j]
-                for i in range(F):
-                    fi = f[i]
+                    pre[j] += fi * feat_w[i, j]
+            for j in range(h):
+                x = pre[j] + cand_h[n, j] + ctx_h[j]
+                pre[j] = x if x > zero else zero
+            for j in range(h):
+                hid[j] = hid_b[j]
+            for i in range(h):
+                pi = pre[i]
+                if pi != zero:
                     for j in range(h):
-                        pre[j] += fi * feat_w[i, j]
-                for j in range(h):
-                    x = pre[j] + cand_h[e, n, j] + ctx_h[j]
-                    pre[j] = x if x > zero else zero
-                for j in range(h):
-                    hid[j] = hid_b[j]
-                for i in range(h):
-                    pi = pre[i]
-                    if pi != zero:
-                        for j in range(h):
-                            hid[j] += pi * hid_w[i, j]
-                o = out_b
-                for j in range(h):
-                    if hid[j] > zero:
-                        o += out_w[j] * hid[j]
-                lin = lin_b
-                for i in range(F):
-                    lin += lin_w[i] * f[i]
-                v = v + o + lin
-            out[e, n] = v
+                        hid[j] += pi * hid_w[i, j]
+            o = out_b
+            for j in range(h):
+                if hid[j] > zero:
+                    o += out_w[j] * hid[j]
+            lin = lin_b
+            for i in range(F):
+                lin += lin_w[i] * f[i]
+            v = v + o + lin
+        out[n] = v
 
 
 def logits(kind: str, w: ScorerWeights, feats: np.ndarray, prior: np.ndarray,
