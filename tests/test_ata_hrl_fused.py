@@ -54,3 +54,50 @@ def test_the_compiled_decode_gives_the_step_by_step_decode_bits(monkeypatch, ove
     rec = Simulation(s.mission, s.registry, list(range(n))).run()
     assert rec.allocations.size
     assert seen["fused"] > 10 and seen["reallocating"] > 5, seen
+
+
+def _replay_numpy(dec, kept, alloc=None):
+    """`Decoder.replay` in its array form: every episode's round at once, with the decoder's
+    commit."""
+    prev = alloc if alloc is not None else dec.previous
+    left = kept & dec.left
+    owner = prev.robot
+    left &= np.isfinite(np.take_along_axis(dec.robot_free, owner, axis=1))
+    for _ in range(dec.P):
+        has = np.zeros((dec.E, dec.R), dtype=bool)
+        lb, lp = np.nonzero(left)
+        if lb.size == 0:
+            break
+        has[lb, owner[lb, lp]] = True
+        rs = np.where(has, dec.robot_free, np.inf).argmin(axis=1)
+        act = has.any(axis=1)
+        gx = dec.tx - dec.robot_xy[dec.e, rs, 0][:, None]
+        gy = dec.ty - dec.robot_xy[dec.e, rs, 1][:, None]
+        dist = np.where(left & (owner == rs[:, None]), gx * gx + gy * gy, np.inf)
+        p = dist.argmin(axis=1)
+        dec.commit(act, p, rs, prev.navigator[dec.e, p], prev.classifier[dec.e, p])
+        left[dec.e[act], p[act]] = False
+    dec.left &= ~kept
+
+
+def test_the_compiled_replay_gives_the_array_replays_bits(monkeypatch):
+    from ata.plugins.ata_hrl.decoder import Decoder
+    real, seen = Decoder.replay, []
+
+    def both(dec, kept, alloc=None):
+        twin = copy.deepcopy(dec)
+        _replay_numpy(twin, kept, alloc)
+        real(dec, kept, alloc)
+        for name in ("left", "robot_free", "robot_xy", "n_assigned", "robot", "nav", "cls",
+                     "touched"):
+            assert np.array_equal(getattr(dec, name), getattr(twin, name)), name
+        for name in ("cum", "booked", "free"):
+            assert np.array_equal(getattr(dec.load, name), getattr(twin.load, name)), name
+        np.testing.assert_array_equal(dec.load.fatigue_at(), twin.load.fatigue_at())
+        seen.append(int((kept & ~dec.left).sum()))
+
+    monkeypatch.setattr(Decoder, "replay", both)
+    s = load_session(str(Path(ata.__file__).parent / "missions" / "default.toml"),
+                     ["mission.uncertainty='high'"])
+    Simulation(s.mission, s.registry, list(range(4))).run()
+    assert len(seen) > 5 and sum(seen) > 20, seen

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from ata.model import scalar
 from ata.model.scalar import jit
 
@@ -77,4 +79,58 @@ def commit_episode(e, p, r, n, c, robot_free, robot_xy, n_assigned, robot, nav, 
     n_assigned[e, re] += 1
     robot[e, pe], nav[e, pe], cls[e, pe] = re, ne, ce
     left[e, pe] = False
+    return booked_any
+
+
+@jit
+def _first_min(values, ok):
+    """numpy's argmin of `values` where `ok`, inf elsewhere: the first minimum, a nan first."""
+    best, top = 0, values[0] if ok[0] else math.inf
+    if top != top:
+        return 0
+    for i in range(1, values.shape[0]):
+        v = values[i] if ok[i] else math.inf
+        if v != v:
+            return i
+        if v < top:
+            best, top = i, v
+    return best
+
+
+@jit
+def replay_step(todo, owner, nav_b, cls_b, tx, ty, p, r, n, c, left, robot_free, robot_xy,
+                n_assigned, robot, nav, cls, touched, prev_nav, prev_cls, charge, now, rebrief_s,
+                capture_s, speed, skill, robot_type, kind, diff, task_xy, tab, cum, booked, free,
+                edges):
+    """`Decoder.replay`'s loop, one episode after the other: commit the POIs in `todo` (E, P)
+    with their triples (owner, nav_b, cls_b), the robot free first (of those holding one) going
+    to its nearest, at most P rounds (`commit_episode`, the rest its arguments); p, r, n and c
+    (E,) working arrays. Whether anyone's work was booked."""
+    E, P = todo.shape
+    R = robot_free.shape[1]
+    has = np.empty(R, np.bool_)
+    near = np.empty(P, np.bool_)
+    dist = np.empty(P)
+    booked_any = False
+    for e in range(E):
+        for _ in range(P):
+            has[:] = False
+            for q in range(P):
+                if todo[e, q]:
+                    has[owner[e, q]] = True
+            if not has.any():
+                break
+            rs = _first_min(robot_free[e], has)
+            for q in range(P):
+                gx = tx[e, q] - robot_xy[e, rs, 0]
+                gy = ty[e, q] - robot_xy[e, rs, 1]
+                dist[q] = gx * gx + gy * gy
+                near[q] = todo[e, q] and owner[e, q] == rs
+            pe = _first_min(dist, near)
+            p[e], r[e], n[e], c[e] = pe, rs, nav_b[e, pe], cls_b[e, pe]
+            booked_any |= commit_episode(e, p, r, n, c, robot_free, robot_xy, n_assigned, robot,
+                                         nav, cls, left, touched, prev_nav, prev_cls, charge,
+                                         now, rebrief_s, capture_s, speed, skill, robot_type,
+                                         kind, diff, task_xy, tab, cum, booked, free, edges)
+            todo[e, pe] = False
     return booked_any

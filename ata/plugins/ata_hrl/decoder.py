@@ -20,7 +20,8 @@ and the fatigue floor are the plan start's (what the team models published).
 
 The four steps' inputs are computed by compiled loops over the episodes (`poi_step`,
 `member_steps`), which give the bits the array formulation gave (tests/test_compiled_steps.py);
-the rest (the start, the keep step, the commits) is numpy.
+so are the commits and the replay of the kept POIs (`commit_step`); the start and the keep
+step are numpy. A decode by the mode runs all of its steps in one compiled loop (`fused`).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ from ata.model import tables
 from ata.model.load import BIN_S, HumanLoad
 from ata.model.plan import PlanStart
 from ata.model.tables import MAX_POINTS
-from ata.plugins.ata_hrl.commit_step import commit_step
+from ata.plugins.ata_hrl.commit_step import commit_step, replay_step
 from ata.plugins.ata_hrl.inputs import (CLS_FEATURES, NAV_FEATURES, POI_FEATURES,
                                         ROBOT_FEATURES, DecodeSettings, StepInputs)
 from ata.plugins.ata_hrl.member_steps import cls_step, nav_step, robot_step
@@ -133,21 +134,19 @@ class Decoder:
         left = kept & self.left
         owner = prev.robot
         left &= np.isfinite(np.take_along_axis(self.robot_free, owner, axis=1))
-        E, R = self.E, self.R
-        for _ in range(self.P):
-            has = np.zeros((E, R), dtype=bool)
-            lb, lp = np.nonzero(left)
-            if lb.size == 0:
-                break
-            has[lb, owner[lb, lp]] = True
-            rs = np.where(has, self.robot_free, np.inf).argmin(axis=1)
-            act = has.any(axis=1)
-            gx = self.tx - self.robot_xy[self.e, rs, 0][:, None]
-            gy = self.ty - self.robot_xy[self.e, rs, 1][:, None]
-            dist = np.where(left & (owner == rs[:, None]), gx * gx + gy * gy, np.inf)
-            p = dist.argmin(axis=1)
-            self.commit(act, p, rs, prev.navigator[self.e, p], prev.classifier[self.e, p])
-            left[self.e[act], p[act]] = False
+        s, load, st = self.s, self.load, self.start
+        charge = self.previous is not None and s.rebrief_s > 0
+        dummy = self._dummy
+        work = [np.zeros(self.E, np.int64) for _ in range(4)]
+        if replay_step(left, owner, prev.navigator, prev.classifier, self.tx, self.ty, *work,
+                       self.left, self.robot_free, self.robot_xy, self.n_assigned, self.robot,
+                       self.nav, self.cls, self.touched,
+                       self.previous.navigator if charge else dummy,
+                       self.previous.classifier if charge else dummy, charge, float(self.now),
+                       float(s.rebrief_s), float(self.capture_s), st.speed, st.skill,
+                       st.robot_type, st.kind, st.diff, st.task_xy, tables.TABLES, load.cum,
+                       load.booked, load.free, load.edges):
+            load.forget()
         self.left &= ~kept
 
     # -- sub-decisions ---------------------------------------------------------------------------
