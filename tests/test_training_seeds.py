@@ -161,3 +161,32 @@ def test_the_smoke_preset_trains_every_phase_of_the_recipe(plugins, phases):
     else:
         assert phases == {"dqn"} and 0 < smoke.total_steps() < recipe.total_steps()
     assert smoke.total_steps() < recipe.total_steps() / 10
+
+
+def test_the_curves_across_seeds_draw_each_seed_their_mean_the_middle_half_and_the_phases(
+        tmp_path):
+    from ata.results.curves import read_log
+    from ata.results.report import pyplot
+    from ata.results.seed_curves import SeedLogs, seeds_figure
+
+    logs = []
+    for seed in range(4):
+        folder = tmp_path / f"seed{seed}"
+        folder.mkdir()
+        rows = ["phase,step,loss"] + [f"aux,{k},{1.0 + seed - 0.1 * k}" for k in range(1, 6)]
+        rows += [f"ita,{k},{seed + 0.5 * k}" for k in range(1, 4)]
+        (folder / "log.csv").write_text("\n".join(rows) + "\n")
+        logs.append(read_log(folder))
+    plt = pyplot()
+    fig = seeds_figure(plt, SeedLogs(tmp_path, [0, 1, 2, 3], logs, [tmp_path] * 4))
+    ax = fig.axes[0]
+    lines = [ln for ln in ax.get_lines() if ln.get_linestyle() != "--"]
+    assert len(lines) == 1 + 4                      # the mean and each seed
+    mean = lines[0].get_ydata()
+    assert mean[0] == pytest.approx((0.9 + 1.9 + 2.9 + 3.9) / 4)
+    assert [ln.get_linewidth() for ln in lines[1:]] == [0.5] * 4
+    band = ax.collections[0].get_paths()[0].vertices[:, 1]
+    assert band.min() == pytest.approx(min(1.65, 0.9 + 0.75 - 0.4), abs=1.0)
+    dashed = [ln for ln in ax.get_lines() if ln.get_linestyle() == "--"]
+    assert [ln.get_xdata()[0] for ln in dashed] == [logs[0].starts[1]]   # where ita begins
+    plt.close(fig)

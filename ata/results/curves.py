@@ -159,6 +159,19 @@ def _is_number(text: str) -> bool:
     return True
 
 
+def mark_phases(ax, log: TrainingLog, named: bool) -> None:
+    """Dashed lines where each phase of `log` after the first begins; with `named`, each
+    phase's name above the panel, over its steps."""
+    for start in log.starts[1:]:
+        ax.axvline(start, color="0.5", linestyle="--", linewidth=0.8)
+    if named:
+        ends = log.starts[1:] + [float(log.x.max())]
+        top = ax.secondary_xaxis("top")
+        top.set_xticks([(a + b) / 2 for a, b in zip(log.starts, ends)],
+                       [p for p, _, _ in log.phases], fontsize=7, color="0.35")
+        top.tick_params(axis="x", length=0)
+
+
 def moving_mean(values: np.ndarray, window: int) -> np.ndarray:
     """The centred moving mean over `window` values (over fewer at the ends)."""
     v = np.asarray(values, dtype=float)
@@ -221,14 +234,7 @@ def curves_figure(plt, log: TrainingLog, title: str):
                     ax.plot(x, moving_mean(v, window), linewidth=1.3, color=colour,
                             label=None if n else f"{column} (moving mean)")
         if several:
-            for start in log.starts[1:]:
-                ax.axvline(start, color="0.5", linestyle="--", linewidth=0.8)
-            if i < ncols:                                # the phases named above the top row
-                ends = log.starts[1:] + [float(log.x.max())]
-                top = ax.secondary_xaxis("top")
-                top.set_xticks([(a + b) / 2 for a, b in zip(log.starts, ends)],
-                               [p for p, _, _ in log.phases], fontsize=7, color="0.35")
-                top.tick_params(axis="x", length=0)
+            mark_phases(ax, log, named=i < ncols)         # named above the top row
         ax.set_title(name, fontsize=10)
         ax.set_ylabel(unit)
         ax.grid(color="0.92", linewidth=0.6)

@@ -1,5 +1,5 @@
 """`ata report DIR` of a folder of seeds (`ata train --seeds N`): the learning curves across
-seeds (each column's mean over the seeds with a 95% band, the Student t interval of that mean),
+seeds (each seed's curve, their mean, the middle half of the seeds shaded, the phases marked),
 a table of each seed's best held-out validation, and, once `ata eval DIR -o DIR/eval` has run,
 each seed's best weights paired with greedy on the same scenarios and the interquartile mean
 (IQM) across seeds with a bootstrap interval over seeds and scenarios (as rliable does)."""
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ata.results.curves import CURVE_PANELS, TrainingLog, read_log
+from ata.results.curves import CURVE_PANELS, TrainingLog, mark_phases, read_log
 from ata.results.report import md_table, pyplot, save_figure
 from ata.results.rows import bootstrap_ci, paired_values, read_results
 from ata.results.seeds import SeedTable, across_seeds, iqm, seed_matrix, seed_tables
@@ -37,9 +37,9 @@ def read_seed_logs(folder: str | Path) -> SeedLogs:
     return SeedLogs(Path(folder), data["seeds"], logs, data["dirs"])
 
 
-def across(seeds: SeedLogs, column: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(x, mean, half-width of the 95% band) of a column over the rows every seed logged it
-    (the same phase and step), x as the first seed's log counts it."""
+def across(seeds: SeedLogs, column: str) -> tuple[np.ndarray, np.ndarray]:
+    """(x, values (rows, seeds)) of a column over the rows every seed logged it (the same
+    phase and step), x as the first seed's log counts it."""
     keyed = []
     for log in seeds.logs:
         values = log.columns.get(column)
@@ -53,18 +53,13 @@ def across(seeds: SeedLogs, column: str) -> tuple[np.ndarray, np.ndarray, np.nda
     common = sorted(set.intersection(*(set(r) for r in keyed)) if keyed else set())
     x = np.array([keyed[0][key][0] for key in common])
     v = np.array([[rows[key][1] for rows in keyed] for key in common]).reshape(len(common), -1)
-    mean = v.mean(1) if v.size else np.zeros(0)
-    n = v.shape[1]
-    if n < 2:
-        return x, mean, np.zeros_like(mean)
-    from scipy import stats   # imported on use: scipy.stats costs start-up time
-    half = stats.t.ppf(0.975, n - 1) * v.std(1, ddof=1) / math.sqrt(n)
-    return x, mean, half
+    return x, v
 
 
 def seeds_figure(plt, seeds: SeedLogs):
-    """fig_curves_seeds: a panel per kind of column, each column's mean over the seeds and its
-    95% band."""
+    """fig_curves_seeds: a panel per kind of column; for each column every seed's curve, thin,
+    their mean, and a band over the middle half of the seeds (the 25th to the 75th percentile,
+    the seeds an IQM averages); dashed lines where a phase begins, named above the top row."""
     panels: dict[str, list[str]] = {}
     for log in seeds.logs:
         for key, columns in log.panels().items():
@@ -78,22 +73,29 @@ def seeds_figure(plt, seeds: SeedLogs):
     axes = list(axes.ravel())
     for ax in axes[len(shown):]:
         ax.remove()
-    for (key, name, unit), ax in zip(shown, axes):
+    first = seeds.logs[0]
+    for i, ((key, name, unit), ax) in enumerate(zip(shown, axes)):
         for column in panels[key]:
-            x, mean, half = across(seeds, column)
+            x, v = across(seeds, column)
             if not x.size:
                 continue
-            line, = ax.plot(x, mean, linewidth=1.2, marker="o" if key == "held_out" else None,
-                            markersize=3, label=f"{column} (mean of {len(seeds.seeds)})")
-            ax.fill_between(x, mean - half, mean + half, color=line.get_color(), alpha=0.2,
-                            linewidth=0)
+            marker = "o" if key == "held_out" else None
+            line, = ax.plot(x, v.mean(1), linewidth=1.4, marker=marker, markersize=3,
+                            label=f"{column} (mean of {v.shape[1]})")
+            colour = line.get_color()
+            ax.plot(x, v, linewidth=0.5, color=colour, alpha=0.35)
+            if v.shape[1] > 1:
+                low, high = np.percentile(v, [25, 75], axis=1)
+                ax.fill_between(x, low, high, color=colour, alpha=0.15, linewidth=0)
+        if len(first.phases) > 1:
+            mark_phases(ax, first, named=i < ncols)
         ax.set_title(name, fontsize=10)
         ax.set_ylabel(unit)
         ax.set_xlabel("step, the phases one after another")
         ax.grid(color="0.92", linewidth=0.6)
         ax.legend(fontsize=7, loc="best")
-    fig.suptitle(f"Training curves over {len(seeds.seeds)} seeds: {seeds.path.name} "
-                 "(mean, 95% band)", fontsize=11)
+    fig.suptitle(f"Training curves over {len(seeds.seeds)} seeds: {seeds.path.name} (each "
+                 "seed thin, their mean, the middle half of the seeds shaded)", fontsize=11)
     return fig
 
 
