@@ -20,6 +20,18 @@ def test_the_paper_set_ships_every_method_and_cell_of_the_suite():
             assert info["scenarios"][1] == 500, (method, cell)
 
 
+def test_the_paper_set_belongs_to_this_release():
+    """Named by release (paper@RELEASE): a version bump publishes it again (ata publish). A
+    manifest from before sets named their release reads as its ata version's (sets.release)."""
+    from ata import __version__
+    from ata.published.sets import release, seed_public
+    from ata.runtime.machine import MODEL_REVISION
+    assert release(MANIFEST) == __version__, "publish the set again with this release"
+    assert MANIFEST.get("model_revision", MODEL_REVISION) == MODEL_REVISION
+    assert seed_public(MANIFEST)                     # seed 0, in examples/paper_suite.toml
+    assert not MANIFEST.get("isolated", False)
+
+
 def test_one_scenario_of_every_method_rerun_is_identical():
     # each method in one cell of setting (a), the levels taken in turn: one scenario each (the
     # first of the cell's rows); the slow test below reruns every cell, (b)'s included

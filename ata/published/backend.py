@@ -10,13 +10,14 @@ from typing import Any, Callable
 
 import numpy as np
 
+from ata import __version__
 from ata.backend import IN_PROCESS, OnEpoch, Part, Quiet
 from ata.core.errors import MissionError
 from ata.core.mission import Mission, parse_override
 from ata.core.registry import Register
 from ata.runtime.inputs import read_json_object
 from ata.published.sets import (DEFAULT, MANIFEST, PREFIX, PUBLISHED, Results, cell_name,
-                                read_published, world_digest)
+                                read_published, release, set_name, shown, world_digest)
 from ata.session import Session, load_session
 
 _ROWS_READ: dict[Path, Results] = {}
@@ -34,8 +35,11 @@ class PublishedRows(Quiet):
 
     @property
     def source(self) -> str:
-        """How its mission's source names it: ``published:FOLDER:METHOD``."""
-        return f"{PREFIX}{self.folder}:{self.method}"
+        """How its mission's source names it: ``published:NAME:METHOD`` for a shipped set,
+        else ``published:FOLDER:METHOD`` (FOLDER relative to the working folder where it is
+        under it): no path of this machine in a message."""
+        label = shown(self.folder)
+        return f"{label if label.startswith(PREFIX) else PREFIX + label}:{self.method}"
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, PublishedRows) and (other.folder, other.method) == \
@@ -45,7 +49,7 @@ class PublishedRows(Quiet):
         return hash((self.folder, self.method))
 
     def key(self) -> dict[str, Any]:
-        return {"published": self.source}
+        return {"published": f"{PREFIX}{self.folder}:{self.method}"}
 
     def registry(self, raw: dict[str, Any], optional: list[str], source: str,
                  extra: tuple = ()) -> tuple[Register, dict[str, Any]]:
@@ -58,15 +62,24 @@ class PublishedRows(Quiet):
     def worker_registry(self, mission: Mission) -> None:
         return None
 
+    def _manifest(self) -> dict[str, Any]:
+        return json.loads((self.folder / MANIFEST).read_text(encoding="utf-8"))
+
     def _entry(self) -> dict[str, Any]:
-        return json.loads((self.folder / MANIFEST).read_text(encoding="utf-8"))["methods"][
-            self.method]
+        return self._manifest()["methods"][self.method]
 
     def load(self, overrides: list[str]) -> Session:
         """The session of the method at the cell the evaluation's `overrides` choose (its
         published resolved mission, with the evaluation's scenarios and seed), checked: its
         scenarios among the published ones, its code and weights the installed ones."""
-        method, entry = self.method, self._entry()
+        method, manifest = self.method, self._manifest()
+        entry = manifest["methods"][method]
+        if release(manifest) != __version__:
+            raise MissionError("", None, f"published {method} is of the set "
+                               f"{set_name(self.folder, manifest)} ({shown(self.folder)}), made "
+                               f"with ata {release(manifest)}; this is ata {__version__}: rows "
+                               "of two releases are not paired; evaluate the method itself "
+                               f"instead, or read a set published with ata {__version__}")
         keys = {tuple(parse_override(t)[0]): parse_override(t)[1] for t in overrides}
         setting, level = keys.get(("mission", "setting")), keys.get(("mission", "uncertainty"))
         cells = entry["cells"]
@@ -121,7 +134,8 @@ class PublishedRows(Quiet):
         missing = [int(i) for i in ids if int(i) not in where]
         if missing:
             raise MissionError("", None, f"published {self.method} has no row for scenario "
-                               f"{missing[0]}", file=str(self.folder))
+                               f"{missing[0]}: publish it again from the evaluation "
+                               "(ata publish EVAL_DIR -o DIR)", file=shown(self.folder))
         pick = np.array([where[int(i)] for i in ids], dtype=np.int64)
         out: Part = {"scenario": np.asarray(ids), "total": c["score"][pick].astype(float),
                      "upper_bound": c["upper_bound"][pick].astype(float),
@@ -156,8 +170,8 @@ def published_method(spec: str, base: Path, where: str, path: str) -> PublishedR
                            file=path)
     manifest = read_json_object(folder / MANIFEST, "the manifest of published rows")
     if method not in manifest.get("methods", {}):
-        raise MissionError(where, "mission", f"{spec!r}: the published rows in {folder} hold "
-                           f"no method {method!r}; they hold: "
+        raise MissionError(where, "mission", f"{spec!r}: the published rows in {shown(folder)} "
+                           f"hold no method {method!r}; name one they hold: "
                            + ", ".join(manifest.get("methods", {})), file=path)
     return PublishedRows(folder.resolve(), method)
 
@@ -180,5 +194,8 @@ def check_models(jobs: list[Any]) -> None:
                                    f"the published {rows.method} ({job.setting}, {job.level}): "
                                    f"model revision {mine} here, {model} there (the world "
                                    "components' code or settings, or the team, clock or "
-                                   "uncertainty, differ); the rows cannot be paired",
+                                   "uncertainty, differ); the rows cannot be paired: run "
+                                   "it in the published method's world (its resolved mission "
+                                   "is in the set's manifest.json) or evaluate "
+                                   f"{rows.method} itself beside it",
                                    file=job.source)

@@ -5,7 +5,12 @@ A set of published rows is a folder (under ``ata/published/NAME``, or anywhere) 
 
 * ``rows.csv.gz``: the evaluation's results.csv, gzipped, without its time columns (``wall_s``,
   ``milp_solve_s``: the time a row took depends on the machine, not on the method);
-* ``manifest.json``: the ata version, the seed, and per method its component versions and the
+* ``manifest.json``: the release the set belongs to (``release``, the ata version that
+  published it, shown as ``NAME@RELEASE``, e.g. ``paper@0.2.0``) and the revision of the
+  benchmark model (``model_revision``, MODEL.md's), whether its seed is public (``seed_public``)
+  and whether its methods ran isolated (``isolated``), the git commit of the checkout that ran
+  them (``commit``, ``dirty``) and the package versions (``packages``) where the evaluation
+  recorded them, and per method its component versions and the
   digest of each component's code (``code``), and per (setting, level) cell the digests of the
   weights it read (``inputs``: a method may read other weights in each setting), its resolved
   mission, its scenario ids (first, count) and the *model revision* of the cell: the digest of
@@ -15,11 +20,19 @@ A set of published rows is a folder (under ``ata/published/NAME``, or anywhere) 
   eval.json records it).
 
 `publish` writes one from an `ata eval` folder (`ata publish EVAL_DIR --out DIR`). `check_pairing`
-refuses to pair a folder of results against a set when a cell's scenarios are not among the
-set's, its model revision differs, or the code or the cell's weights of a published method
-differ from those installed now. ``ata.experiment.reproduce.rerun_sample`` reruns a sample of a
-set's rows and names every row that is not identical; `ata.published.backend` reads a suite's
-``published:METHOD`` from a set.
+refuses to pair a folder of results against a set when the folder was made by another ata
+release than the set's, a cell's scenarios are not among the set's, its model revision differs,
+or the code or the cell's weights of a published method differ from those installed now.
+
+``ata.experiment.reproduce.rerun_sample`` reruns a sample of a set's rows and names every row
+that is not identical; `ata.published.backend` reads a suite's ``published:METHOD`` from a set.
+
+A manifest written before sets were named by release (no ``release``, ``model_revision`` or
+``seed_public``) is read as follows: its release is its ``ata`` (the version that published it),
+its model revision is not shown, its seed is public unless a cell's seed is a ``secret:`` label.
+The *model revision* of a set (``model_revision``: the revision of the benchmark model, MODEL.md,
+`ata.runtime.machine.MODEL_REVISION`) is not a cell's ``model``, the digest of the world its
+scenarios ran in.
 
 The reference code and weights are checked against the installed ones from each published
 method's resolved mission: a set is valid for the version whose code made it.
@@ -40,9 +53,10 @@ import numpy as np
 
 from ata import __version__
 from ata.core.errors import MissionError
+from ata.runtime.machine import MODEL_REVISION, PROVENANCE
 from ata.core.mission import loads_toml
 from ata.results.rows import Results, read_results
-from ata.runtime.folders import replace_folder, safe_name
+from ata.runtime.folders import replace_folder, safe_name, shown_path
 from ata.runtime.inputs import read_json_object
 from ata.session import inputs_of, load_session
 
@@ -86,6 +100,108 @@ def locate(spec: str | Path) -> Path:
     raise MissionError("", None, f"no published rows {name!r}: shipped sets: "
                        f"{', '.join(shipped) or '(none in this version yet)'}; or give "
                        f"published:PATH, a folder that `ata publish` wrote", file=text)
+
+
+def release(manifest: dict[str, Any]) -> str:
+    """The ata release a set belongs to: its ``release``, else (a set published before sets
+    were named by release) the ``ata`` version that published it."""
+    return str(manifest.get("release") or manifest.get("ata") or "unknown")
+
+
+def seed_public(manifest: dict[str, Any]) -> bool:
+    """Whether a set's seed is public: its ``seed_public``, else whether no cell's seed is the
+    ``secret:`` label of a secret one."""
+    if isinstance(manifest.get("seed_public"), bool):
+        return manifest["seed_public"]
+    return not any(str(info.get("seed", "")).startswith("secret:")
+                   for entry in manifest.get("methods", {}).values()
+                   for info in entry.get("cells", {}).values())
+
+
+def shown(folder: str | Path) -> str:
+    """How output names a set's folder, without a path of this machine: ``published:NAME`` for
+    a shipped set, else the path relative to the working folder (as given where it is not
+    under it)."""
+    folder = Path(folder)
+    try:
+        if folder.resolve().parent == PUBLISHED:
+            return f"{PREFIX}{folder.name}"
+    except OSError:
+        pass
+    return relative(folder)
+
+
+def relative(path: str | Path) -> str:
+    """A path relative to the working folder where it is under it (`shown_path`)."""
+    return shown_path(path)
+
+
+def set_name(folder: str | Path, manifest: dict[str, Any]) -> str:
+    """A set named by its release: ``NAME@RELEASE`` (``paper@0.2.0``), NAME its folder's."""
+    return f"{Path(folder).name}@{release(manifest)}"
+
+
+def describe(folder: str | Path, manifest: dict[str, Any]) -> str:
+    """A set in a line: 'paper@0.2.0 (published:paper; model revision 3; public seed)'."""
+    revision = manifest.get("model_revision")
+    parts = [shown(folder)] + ([f"model revision {revision}"] if revision is not None else []) \
+        + ["public seed" if seed_public(manifest) else "secret seed"] \
+        + (["isolated"] if manifest.get("isolated") else [])
+    return f"{set_name(folder, manifest)} ({'; '.join(parts)})"
+
+
+def folder_release(folder: str | Path) -> str | None:
+    """The ata release that made a result folder's rows: its plugins.toml's ``ata``, else its
+    provenance.json's or eval.json's; None where none says."""
+    folder = Path(folder)
+    try:
+        version = _read_toml(folder / "plugins.toml").get("ata")
+        if version:
+            return str(version)
+    except (OSError, ValueError):
+        pass
+    for name in (PROVENANCE, "eval.json"):
+        try:
+            data = json.loads((folder / name).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        if isinstance(data, dict) and data.get("ata"):
+            return str(data["ata"])
+    return None
+
+
+def check_release(mine: str | None, folder: str | Path, manifest: dict[str, Any],
+                  what: str = "the rows here") -> None:
+    """Refuse (MissionError, one line naming both) to pair rows made by ata `mine` with a set of
+    another release."""
+    theirs = release(manifest)
+    if mine is None or mine == theirs:
+        return
+    raise MissionError("", None, f"{what} were made with ata {mine}, the published set "
+                       f"{set_name(folder, manifest)} ({shown(folder)}) with ata {theirs}: rows "
+                       f"of two releases are not paired; evaluate with ata {theirs}, or compare "
+                       f"with a set published with ata {mine}")
+
+
+def read_from_sets(folder: str | Path) -> list[str]:
+    """The methods of an evaluation read from published sets (a suite's ``published:METHOD``),
+    each as 'METHOD: NAME@RELEASE (published:NAME)', from its eval.json; [] for none."""
+    out = []
+    for job in _json_object(Path(folder) / "eval.json").get("jobs") or []:
+        source = str(job.get("mission", "")) if isinstance(job, dict) else ""
+        if not source.startswith(PREFIX) or source.count(":") < 2:
+            continue
+        where, method = source[len(PREFIX):].rsplit(":", 1)
+        for candidate in (PUBLISHED / where, Path(where)):
+            manifest = _json_object(candidate / MANIFEST)
+            if manifest:
+                line = f"{method}: {describe(candidate, manifest)}"
+                break
+        else:
+            line = f"{method}: {source} (the set is not here)"
+        if line not in out:
+            out.append(line)
+    return out
 
 
 def world_digest(resolved: dict[str, Any], code: dict[str, str]) -> str:
@@ -210,16 +326,49 @@ def publish(eval_dir: str | Path, out: str | Path) -> Path:
     writer.writeheader()
     writer.writerows(rows)
     data = gzip.compress(buffer.getvalue().encode(), mtime=0)
-    try:
-        machine = json.loads((folder / "eval.json").read_text(encoding="utf-8")).get("machine")
-    except (OSError, ValueError):
-        machine = None
-    manifest = {"format": FORMAT, "ata": __version__, "made_with": plugins.get("ata"),
+    meta = _json_object(folder / "eval.json")
+    made = _json_object(folder / PROVENANCE)
+    git = made.get("checkout") if isinstance(made.get("checkout"), dict) else {}
+    arguments = meta.get("arguments") if isinstance(meta.get("arguments"), dict) else {}
+    _check_made_here(folder, plugins.get("ata"), methods)
+    manifest = {"format": FORMAT, "release": __version__, "model_revision": MODEL_REVISION,
+                "ata": __version__, "made_with": plugins.get("ata"),
+                "seed_public": not any(c["seed"].startswith("secret:")
+                                       for m in methods.values() for c in m["cells"].values()),
+                "isolated": bool(arguments.get("isolate")),
+                "commit": git.get("commit"), "dirty": git.get("dirty"),
+                "packages": made.get("packages"),
                 "rows": len(rows), "rows_sha256": hashlib.sha256(data).hexdigest(),
-                "machine": machine, "methods": methods}
+                "machine": meta.get("machine"), "methods": methods}
     # whole or not at all: a full disk never leaves half a set, nor spoils the set it replaces
     return replace_folder(out, {ROWS: data,
                                 MANIFEST: (json.dumps(manifest, indent=1) + "\n").encode()})
+
+
+def _json_object(path: Path) -> dict[str, Any]:
+    """A JSON file's object; {} where it is missing, unreadable or not an object."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def _check_made_here(folder: Path, made_with: str | None, methods: dict[str, Any]) -> None:
+    """A set belongs to the release that publishes it: an evaluation made with another ata
+    version is published only where every method's code is the code installed now."""
+    if made_with in (None, __version__):
+        return
+    for name, entry in methods.items():
+        text = next(iter(entry["cells"].values()), {}).get("mission")
+        now = current_code(text) if text else {}
+        changed = [k for k, v in entry["code"].items() if now.get(k) not in (None, v)]
+        if changed:
+            raise MissionError("", None, f"was evaluated with ata {made_with} and this is ata "
+                               f"{__version__}, whose code of {name} differs "
+                               f"({', '.join(changed)}): a set belongs to one release; "
+                               f"evaluate again with ata {__version__}, then publish",
+                               file=str(folder))
 
 
 def read_published(spec: str | Path) -> tuple[Results, dict[str, Any], Path]:
@@ -229,11 +378,12 @@ def read_published(spec: str | Path) -> tuple[Results, dict[str, Any], Path]:
     data = (folder / ROWS).read_bytes()
     if manifest.get("rows_sha256") not in (None, hashlib.sha256(data).hexdigest()):
         raise MissionError("", None, f"{ROWS} is not the file its manifest describes (another "
-                           "sha256): the set was changed", file=str(folder))
+                           "sha256): the set was changed; publish it again (ata publish "
+                           "EVAL_DIR -o DIR) or restore its files", file=shown(folder))
     with tempfile.TemporaryDirectory() as tmp:
         (Path(tmp) / "results.csv").write_bytes(gzip.decompress(data))
         results = read_results(Path(tmp))
-    results.origin = [o.replace(str(Path(tmp) / "results.csv"), str(folder / ROWS))
+    results.origin = [o.replace(str(Path(tmp) / "results.csv"), f"{shown(folder)}/{ROWS}")
                       for o in results.origin]
     return results, manifest, folder
 
@@ -254,11 +404,20 @@ def mission_inputs(mission_text: str) -> dict[str, str]:
                       if isinstance(table, dict) and name not in RESOLVED_TABLES})
 
 
+def _seed_option(seed: str) -> str:
+    """What --seed gives a set's seed: the seed, or for a secret one the variable naming it."""
+    return "env:NAME (NAME holding the set's secret seed)" if seed.startswith("secret:") \
+        else seed
+
+
 def check_pairing(mine: Results, folder: str | Path, manifest: dict[str, Any],
-                  methods: list[str]) -> None:
+                  methods: list[str], set_folder: str | Path | None = None) -> None:
     """Refuse (MissionError) to pair `mine` (read from `folder`) with the published `methods`
-    when a cell's scenarios are not among the published ones, its model revision differs, or
-    a published method's code differs from the code installed now."""
+    (of the set in `set_folder`) when `folder` was made by another ata release than the set, a
+    cell's scenarios are not among the published ones, its model revision differs, or a
+    published method's code differs from the code installed now."""
+    check_release(folder_release(folder), set_folder or Path("published"), manifest,
+                  what=f"the rows of {folder}")
     plugins, missions = folder_parts(Path(folder), mine)
     published = manifest.get("methods", {})
     cols = mine.columns
@@ -282,7 +441,9 @@ def check_pairing(mine: Results, folder: str | Path, manifest: dict[str, Any],
                                    f"model than the published {name}: model revision {model} "
                                    f"here, {info['model']} there (the world components' code "
                                    "or settings, or the team, clock or uncertainty, differ); "
-                                   "the rows cannot be paired", file=str(folder))
+                                   "the rows cannot be paired: run it in the published world "
+                                   "(the set's missions, in its manifest.json) or evaluate "
+                                   f"{name} beside it (ata eval)", file=str(folder))
             first, count = info["scenarios"]
             outside = [i for i in ids if not first <= i < first + count]
             if seeds != {info["seed"]} or outside:
@@ -290,8 +451,10 @@ def check_pairing(mine: Results, folder: str | Path, manifest: dict[str, Any],
                                    f"scenarios than the published {name}: seed "
                                    f"{', '.join(sorted(seeds))}, ids {min(ids)}..{max(ids)} "
                                    f"here; seed {info['seed']}, ids {first}..{first + count - 1}"
-                                   " there (ata eval runs the held-out ids; give the same "
-                                   "--seed)", file=str(folder))
+                                   " there: evaluate it on the published scenarios (ata eval "
+                                   f"MISSION_OR_SUITE --seed {_seed_option(info['seed'])} -o DIR "
+                                   "runs the held-out ids) and compare that folder",
+                                   file=str(folder))
             weights = mission_inputs(info["mission"])
             other = [k for k, v in info.get("inputs", {}).items() if weights.get(k) != v]
             if other:

@@ -1,6 +1,7 @@
 """What made a run's rows, recorded in its folder: the machine (shown with the time columns),
-and the provenance (`provenance.json`: ata's version, the git commit of a checkout and whether
-its tree was dirty, the versions of the packages that compute results, the machine)."""
+and the provenance (`provenance.json`: ata's version and the model revision it implements, the
+git commit of a checkout and whether its tree was dirty, the versions of the packages that
+compute results, the machine)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,9 @@ from typing import Any
 
 from ata import __version__
 
+MODEL_REVISION = 3
+"""The revision of the benchmark model (the world's specification, MODEL.md) this release of
+ata implements: a published set and a run folder's provenance record it."""
 PACKAGES = ("numpy", "scipy", "numba", "torch", "pluggy")
 """The packages whose versions can move a result."""
 PROVENANCE = "provenance.json"
@@ -76,8 +80,8 @@ def provenance() -> dict[str, Any]:
             packages[package] = metadata.version(package)
         except metadata.PackageNotFoundError:
             pass
-    return {"ata": __version__, "checkout": checkout(), "packages": packages,
-            "machine": machine()}
+    return {"ata": __version__, "model_revision": MODEL_REVISION, "checkout": checkout(),
+            "packages": packages, "machine": machine()}
 
 
 def write_provenance(folder: str | Path) -> None:
@@ -95,7 +99,9 @@ def provenance_text(folder: str | Path) -> str | None:
         return None
     if not isinstance(info, dict):
         return None
-    parts = [f"ata {info.get('ata', '?')}"]
+    revision = info.get("model_revision")
+    parts = [f"ata {info.get('ata', '?')}"
+             + (f" (model revision {revision})" if revision is not None else "")]
     git = info.get("checkout")
     if isinstance(git, dict):
         parts.append(f"commit {str(git.get('commit', '?'))[:12]}"
