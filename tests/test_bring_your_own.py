@@ -101,10 +101,18 @@ def test_a_policy_in_a_file_from_check_to_a_paired_table_then_edited(published_f
     with monkeypatch.context() as patched:
         patched.setattr(kernel.Simulation, "run", no_runs)
         r = cli("compare", "mine", "published:pub")
+        full = cli("compare", "mine", "published:pub", "--full")
     assert r.exit_code == 0, r.output
-    assert "none rerun" in r.output
+    assert "none rerun" in r.output and f"pub@{published.__version__}" in r.output
+    # one table: every method against the first published one (no greedy among them)
+    assert "setting a, low uncertainty: score, 3 paired scenarios, against greedy (600 " \
+        "s/episode)" in " ".join(r.output.split())
+    assert [x.split("│")[1].strip() for x in r.output.splitlines() if x.startswith("│")] == \
+        ["nearest", "greedy (600 s/episode)", "random"]
+    # --full: nearest against each published method
+    assert full.exit_code == 0, full.output
     for base in ("greedy (600 s/episode)", "random"):
-        line = next(x for x in r.output.splitlines() if f"nearest - {base}" in x)
+        line = next(x for x in full.output.splitlines() if f"nearest - {base}" in x)
         assert "│      3 │" in line        # 3 paired scenarios
 
     # the policy edited: the same --out refuses, naming it and --force

@@ -136,7 +136,8 @@ def test_compare_one_folder_each_method_against_greedy(cli, tmp_path):
                               ["random", "4", "4",
                                f"{lo[0]:+.1f} [{lo[1]:+.1f}, {lo[2]:+.1f}]"]]
     assert tables[1].rows == tables[0].rows                    # the same differences at (b)
-    out = cli("compare", ev, "--base", "ATA-HRL", "--methods", "greedy", "-c", "expected_score")
+    out = cli("compare", ev, "--base", "ATA-HRL", "--methods", "greedy", "-c", "expected_score",
+              "--full")
     assert out.exit_code == 0, out.output
     assert "setting a, low uncertainty: method - ATA-HRL, paired" in flat(out.output)
     assert "│ greedy │ 4 │ 4 │ -12.5 [-12.5, -12.5] │" in flat(out.output)
@@ -167,7 +168,8 @@ def test_compare_two_evaluations_method_by_method(cli, tmp_path):
     assert tables[0].rows == [["greedy", "4", "4", "+2.0 [+2.0, +2.0]"],
                               ["ATA-HRL - greedy", "4", "4", "+14.5 [+14.5, +14.5]"]]
     other = folder(tmp_path / "other", [("X", "a", "low", 100, 1.0), ("X", "b", "low", 100, 1.0)])
-    assert_user_error(cli("compare", a, other), "no method of the first folder is in the second")
+    assert_user_error(cli("compare", a, other, "--full"),
+                      "no method of the first folder is in the second")
 
 
 def test_compare_two_plain_runs(cli, tmp_path):
@@ -338,9 +340,15 @@ def test_report_and_compare_show_every_value_at_80_columns(tmp_path):
     three = ["score", "expected_score", "fraction_of_u"]
     for columns, power in ((["score"], False), (["score"], True), (three, False)):
         args = [a for c in columns for a in ("-c", c)] + (["--power"] if power else [])
-        code, output = cli80("compare", ev, *args)
+        code, output = cli80("compare", ev, *args, "--full")
         assert code == 0, output
         tables = cmp.compare(read_results(ev), None, columns, power=power)
+        assert_whole_at_80(output, [v for t in tables for row in t.rows for v in row])
+    for columns in (["score"], three):              # the default: a table per cell
+        code, output = cli80("compare", ev, *[a for c in columns for a in ("-c", c)])
+        assert code == 0, output
+        tables = cmp.leaderboards(read_results(ev), None, columns)
+        assert len(tables) == 4 * len(columns)
         assert_whole_at_80(output, [v for t in tables for row in t.rows for v in row])
     code, output = cli80("compare", ev, "--means", "-c", "score", "-c", "expected_score",
                          "-c", "classified_share", "-c", "reallocations")
@@ -372,3 +380,108 @@ def test_compare_of_a_folder_of_one_method_says_what_to_give(cli, tmp_path):
     result = cli("compare", str(out))
     assert result.exit_code == 2
     assert "this folder holds one method: give a second folder" in " ".join(result.output.split())
+
+
+# -- the default: one compact table per cell against a base ---------------------------------------
+def test_the_default_is_a_table_per_cell_of_every_method_against_greedy(cli, tmp_path):
+    ev = suite_folder(tmp_path / "ev")
+    tables = cmp.leaderboards(read_results(ev), None, ["score"])
+    assert [(t.setting, t.level) for t in tables] == [("a", "low"), ("b", "high")]
+    assert tables[0].title == ("setting a, low uncertainty: score, 4 paired scenarios, against "
+                               "greedy")
+    assert tables[0].header == ["method", "score [95% CI]", "method - greedy [95% CI]",
+                                "P(beats greedy)"]
+    # greedy's rows reversed: its order pairs them, (103, 102, 101, 100)
+    mean = [bootstrap_ci(v) for v in ([40.0, 30.0, 20.0, 10.0], [52.5, 42.5, 32.5, 22.5],
+                                      [20.0, 40.0, 10.0, 15.0])]
+    diff = bootstrap_ci([-20.0, 10.0, -10.0, 5.0])          # random - greedy
+    assert mean[2][1:] == (12.5, 33.75) and diff[1:] == (-15.0, 7.5)   # half-widths >= 10: 0 dp
+    assert tables[0].rows == [
+        ["greedy", "25 [15, 35]", "base", "-"],
+        ["ATA-HRL", "38 [28, 48]", "+12.5 [+12.5, +12.5]", "1.00"],   # a point: by its size
+        ["w/o.AUX", "25 [15, 35]", "+0.0 [+0.0, +0.0]", "0.50"],      # every scenario a tie
+        ["random", "21 [12, 34]", "-4 [-15, +8]", "0.50"]]            # 2 of 4 above greedy
+    assert [r[2:] for r in tables[1].rows] == [r[2:] for r in tables[0].rows]
+    # --base, --methods (the base shown all the same), and the CLI's table
+    tables = cmp.leaderboards(read_results(ev), None, ["score"], base="random",
+                              methods=["ATA-HRL"])
+    assert [r[0] for r in tables[0].rows] == ["random", "ATA-HRL"]
+    out = cli("compare", ev)
+    assert out.exit_code == 0, out.output
+    assert "setting a, low uncertainty: score, 4 paired scenarios, against greedy" in \
+        flat(out.output)
+    assert "│ ATA-HRL │ 38 [28, 48] │ +12.5 [+12.5, +12.5] │ 1.00 │" in flat(out.output)
+    assert "differing in score" not in out.output            # the full tables: --full
+    assert_user_error(cli("compare", ev, "--base", "nobody"), "--base: no method 'nobody'")
+
+
+def test_the_default_of_two_folders_shows_both_against_one_base(cli, tmp_path):
+    new = suite_folder(tmp_path / "new", shift=2.0)
+    old = suite_folder(tmp_path / "old")
+    tables = cmp.leaderboards(read_results(new), read_results(old), ["score"])
+    t = tables[0]
+    assert t.title.endswith("against greedy (B)")          # B's greedy: the names are in both
+    assert [r[0] for r in t.rows] == ["greedy (A)", "ATA-HRL (A)", "w/o.AUX (A)", "random (A)",
+                                      "greedy (B)", "ATA-HRL (B)", "w/o.AUX (B)", "random (B)"]
+    assert t.sections == [3]                                 # a rule after A's methods
+    assert t.rows[0][2:] == ["+2.00 [+2.00, +2.00]", "1.00"]
+    assert t.rows[4][2:] == ["base", "-"]
+    out = cli("compare", new, old)
+    assert out.exit_code == 0, out.output
+    assert f"A: {new}; B: {old}" in flat(out.output)
+    # two runs of one cell each, at other levels: greedy is the base wherever it is
+    a = run_folder(tmp_path / "a", "greedy", [10.0, 20.0, 30.0])
+    b = run_folder(tmp_path / "b", "random", [4.0, 20.0, 0.0], uncertainty="high")
+    t = cmp.leaderboards(read_results(b), read_results(a), ["score"])[0]
+    assert (t.setting, t.level) == ("a", "high - medium")
+    assert t.rows == [["random", "8 [0, 20]", "-12 [-30, +0]", "0.17"],
+                      ["greedy", "20 [10, 30]", "base", "-"]]
+    # the scenarios are A's (4 of B's 6); a method of B with fewer says so in a column n
+    rows = [("greedy", "a", "low", i, 10.0 + i) for i in range(6)] + \
+        [("mine", "a", "low", i, 12.0 + i) for i in range(6)] + \
+        [("other", "a", "low", i, 9.0) for i in range(2)]
+    short = folder(tmp_path / "short", [r for r in rows if r[0] == "mine" and r[3] < 4])
+    t = cmp.leaderboards(read_results(short), read_results(folder(tmp_path / "six", rows)),
+                         ["score"])[0]
+    assert t.title == "setting a, low uncertainty: score, against greedy"
+    assert t.header[:2] == ["method", "n"]
+    assert [r[:2] for r in t.rows] == [["mine (A)", "4"], ["greedy", "4"], ["mine (B)", "4"],
+                                       ["other", "2"]]
+    assert t.rows[0][3:] == ["+2.00 [+2.00, +2.00]", "1.00"]
+
+
+# -- a run against the shipped published rows: a screen per cell ---------------------------------
+def test_a_run_against_the_published_rows_prints_a_screen_per_cell_at_80_columns(tmp_path,
+                                                                               monkeypatch):
+    """`ata compare RUN published` of a one-method run: one table per cell, each at most 40
+    lines, no line over 80 columns (it was 505 lines, 77 tables, 11 split in two)."""
+    from ata.published import sets as published
+    theirs, manifest, _ = published.read_published("published")
+    rows = []
+    for cell in sorted({c for e in manifest["methods"].values() for c in e["cells"]}):
+        setting, level = cell.split("/")
+        sel = theirs.select("greedy", setting, level)
+        ids = theirs.columns["scenario"][sel][:20]
+        scores = theirs.columns["score"][sel][:20]
+        rows += [("mine", setting, level, int(i), float(s) + 3.0 * (k % 5))
+                 for k, (i, s) in enumerate(zip(ids, scores))]
+    mine = folder(tmp_path / "mine", rows)
+    # what is printed is the subject here; the pairing's checks have tests of their own
+    monkeypatch.setattr(published, "check_pairing", lambda *args, **kwargs: None)
+    code, output = cli80("compare", mine, "published")
+    assert code == 0, output
+    lines = output.splitlines()
+    assert max(len(line) for line in lines) <= 80, output
+    titles = [k for k, line in enumerate(lines) if "uncertainty: score" in line]
+    assert len(titles) == 6, output
+    for start, end in zip(titles, titles[1:] + [len(lines)]):
+        assert end - start <= 40, "\n".join(lines[start:end])
+    assert sum("(1 of 2)" in line for line in lines) == 0             # no table split in two
+    assert "published rows of paper@" in flat(output) and "(published:paper;" in flat(output)
+    assert str(published.PUBLISHED) not in output                     # no path of this machine
+    table = cmp.leaderboards(read_results(mine), theirs, ["score"], tags=("A", "published"))[0]
+    assert [r[0] for r in table.rows][:2] == ["mine", "ATA-HRL"] and len(table.rows) == 12
+    assert next(r for r in table.rows if r[0] == "greedy")[2:] == ["base", "-"]
+    # the whole matrix stays behind --full
+    code, full = cli80("compare", mine, "published", "--full")
+    assert code == 0 and len(full.splitlines()) > 3 * len(lines)

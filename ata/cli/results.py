@@ -52,6 +52,7 @@ def report(run_dir: List[Path] = typer.Argument(
     from ata.results import training_report   # on use: start-up time
     from ata.results.rows import check_column, read_results   # on use: start-up time
     from ata.runtime.machine import provenance_text   # on use: start-up time
+    from ata.published.sets import read_from_sets   # on use: start-up time
 
     if any(training_report.is_training_folder(d) for d in run_dir):
         if len(run_dir) > 1:
@@ -81,6 +82,8 @@ def report(run_dir: List[Path] = typer.Argument(
             made = provenance_text(folder)
             if made is not None:
                 console.print(f"made with: {escape(made)}", highlight=False)
+            for line in read_from_sets(folder):
+                console.print(f"published rows read: {escape(line)}", highlight=False)
     console.print("wrote " + ", ".join(escape(str(p)) for p in written), highlight=False)
 
 
@@ -88,18 +91,19 @@ def report(run_dir: List[Path] = typer.Argument(
 @user_errors
 def compare(folders: List[Path] = typer.Argument(
                 ..., metavar="A [B]",
-                help="One `ata eval` folder (each method against --base), or two folders of "
-                     "`ata eval` or `ata run` (A - B, method by method); B may be published "
-                     "rows, published[:NAME|:PATH] (A against each published method, or "
-                     "--base)."),
+                help="One `ata eval` folder, or two folders of `ata eval` or `ata run`; B may "
+                     "be published rows, published[:NAME|:PATH]. A table per cell of every "
+                     "method against --base; with --full each method - --base, A - B method "
+                     "by method, or A - each published method."),
             column: Optional[List[str]] = typer.Option(
                 None, "--column", "-c", metavar="COL",
                 help="A results.csv column: score (the default), expected_score, "
                      "reallocations, ... (repeatable)."),
             base: Optional[str] = typer.Option(
                 None, "--base", metavar="METHOD",
-                help="The method subtracted: of A (default greedy, else the first), or of B; "
-                     "against published rows, NAME[,NAME] (default: every one)."),
+                help="The method subtracted: of B, else of A (default greedy, else B's first "
+                     "method, or A's); against published rows NAME[,NAME] (default: greedy, "
+                     "or every one with --full or --power)."),
             methods: Optional[str] = typer.Option(None, "--methods", metavar="NAME[,NAME]",
                                                   help="Only these methods of A."),
             power: bool = typer.Option(
@@ -107,10 +111,17 @@ def compare(folders: List[Path] = typer.Argument(
                                        "the difference that expected_score estimates."),
             means: bool = typer.Option(False, "--means",
                                        help="The columns' means per method and cell instead."),
+            full: bool = typer.Option(
+                False, "--full",
+                help="Every pairing's table instead of one table per cell: each method of A - "
+                     "the same method of B (or - --base), or each method of A - each "
+                     "published method (or each of --base)."),
             markdown: bool = MarkdownOption,
             resamples: int = ResamplesOption) -> None:
-    """Paired differences on the same scenarios, with bootstrap 95% CIs, on any results column;
-    the scenarios a CI needs to clear 0 (--power); or column means (--means)."""
+    """Paired differences on the same scenarios, with bootstrap 95% CIs, on any results column:
+    by default one table per setting and level, every method of A (and of B) with its mean,
+    its difference to --base and P(beats --base); every pairing with --full; the scenarios a CI
+    needs to clear 0 (--power); or column means (--means)."""
     from ata.core.errors import MissionError   # on use: start-up time
     from ata.results import compare as cmp   # on use: start-up time
     from ata.published import sets as published   # on use: start-up time
@@ -122,28 +133,43 @@ def compare(folders: List[Path] = typer.Argument(
     if power and means:
         raise MissionError("--means", None, "give --power or --means, not both")
     if len(folders) == 2 and published.is_published(folders[1]):
-        _against_published(folders, column, base, _split_or_none(methods), power, markdown,
-                           resamples)
+        _against_published(folders, column, base, _split_or_none(methods), power, means, full,
+                           markdown, resamples)
         return
     results = [read_results(f) for f in folders]
     columns = list(dict.fromkeys(column or ["score"]))
+    other = results[1] if len(results) > 1 else None
     if means:
         tables = cmp.mean_tables([(str(f), r) for f, r in zip(folders, results)], columns,
                                  _split_or_none(methods))
+    elif power or full:
+        tables = cmp.compare(results[0], other, columns, base=base,
+                             methods=_split_or_none(methods), power=power, resamples=resamples)
     else:
-        tables = cmp.compare(results[0], results[1] if len(results) > 1 else None, columns,
-                             base=base, methods=_split_or_none(methods), power=power,
-                             resamples=resamples)
+        tables = cmp.leaderboards(results[0], other, columns, base=base,
+                                  methods=_split_or_none(methods), resamples=resamples)
+        if other is not None and not markdown:
+            note(f"A: {folders[0]}; B: {folders[1]}", wrap=True)
+    _print_tables(tables, markdown)
+
+
+def _print_tables(tables, markdown: bool) -> None:
+    from ata.results import compare as cmp   # on use: start-up time
+
     if markdown:
         print(cmp.markdown(tables), end="")
-    for table in [] if markdown else tables:
-        terminal.table(table.title, table.header, table.rows)
+        return
+    for table in tables:
+        terminal.table(table.title, table.header, table.rows, getattr(table, "sections", ()))
+
 
 def _against_published(folders: List[Path], column: Optional[List[str]], base: Optional[str],
-                       methods: Optional[List[str]], power: bool, markdown: bool,
-                       resamples: int) -> None:
-    """`ata compare A published[:NAME]`: A's methods against each published method (or
-    --base), on the published rows, after `published.check_pairing`."""
+                       methods: Optional[List[str]], power: bool, means: bool, full: bool,
+                       markdown: bool, resamples: int) -> None:
+    """`ata compare A published[:NAME]`, after `published.check_pairing`, on the published
+    rows: by default a table per cell of A's methods and every published method against
+    greedy (or each --base); with --full or --power each method of A against each published
+    method (or each --base); with --means the columns' means of both."""
     from ata.core.errors import MissionError   # on use: start-up time
     from ata.results import compare as cmp   # on use: start-up time
     from ata.results import seeds   # on use: start-up time
@@ -152,27 +178,39 @@ def _against_published(folders: List[Path], column: Optional[List[str]], base: O
 
     mine = read_results(folders[0])
     theirs, manifest, where = published.read_published(folders[1])
-    bases = _split(base) if base else list(theirs.methods)
+    columns = list(dict.fromkeys(column or ["score"]))
+    compact = not (full or power or means)
+    default = [cmp.BASE if cmp.BASE in theirs.methods else theirs.methods[0]] if compact \
+        else list(theirs.methods)
+    bases = _split(base) if base else default
     unknown = [b for b in bases if b not in theirs.methods]
     if unknown:
-        raise MissionError("--base", None, f"no published method {unknown[0]!r}; published: "
-                           + ", ".join(theirs.methods))
-    published.check_pairing(mine, folders[0], manifest, bases)
+        raise MissionError("--base", None, f"no published method {unknown[0]!r}; name one of "
+                           "the published methods: " + ", ".join(theirs.methods))
+    # the default table shows every published method: each must be this code's
+    published.check_pairing(mine, folders[0], manifest,
+                            list(theirs.methods) if compact or means else bases, where)
     tables = []
-    for name in bases:
-        tables += cmp.compare(mine, theirs, list(dict.fromkeys(column or ["score"])),
-                              base=name, methods=methods, power=power, resamples=resamples)
+    if means:
+        tables = cmp.mean_tables([(str(folders[0]), mine), (published.shown(where), theirs)],
+                                 columns, methods)
+    for name in [] if means else bases:
+        if compact:
+            tables += cmp.leaderboards(mine, theirs, columns, base=name, methods=methods,
+                                       tags=("A", "published"), resamples=resamples)
+        else:
+            tables += cmp.compare(mine, theirs, columns, base=name, methods=methods,
+                                  power=power, resamples=resamples)
     # across training seeds (ata.results.seeds): each method's seeds grouped, A - B with its
-    # two-level interval and P(a seed of A beats a seed of B)
-    if not power:
-        tables += seeds.published_tables(mine, theirs, bases, resamples,
-                                         (column or ["score"])[0], methods)
-    if markdown:
-        print(cmp.markdown(tables), end="")
-        return
-    note(f"paired with the published rows in {where} (none rerun)")
-    for table in tables:
-        terminal.table(table.title, table.header, table.rows)
+    # two-level interval and P(a seed of A beats a seed of B); by default only where a method
+    # has several seeds
+    if not (power or means) and (full or seeds.has_seeds(mine) or seeds.has_seeds(theirs)):
+        tables += seeds.published_tables(mine, theirs, bases if base else list(theirs.methods),
+                                         resamples, columns[0], methods)
+    if not markdown:
+        note(f"none rerun: paired with the published rows of "
+             f"{published.describe(where, manifest)}", wrap=True)
+    _print_tables(tables, markdown)
 
 
 @app.command()

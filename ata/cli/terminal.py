@@ -129,9 +129,10 @@ def add_broken_plugins(table: Table, broken: list) -> Table:
     return table
 
 
-def note(text: str) -> None:
-    """A message for the user on stderr (resuming, interrupted, notes)."""
-    err_console.print(escape(text), highlight=False, soft_wrap=True)
+def note(text: str, wrap: bool = False) -> None:
+    """A message for the user on stderr (resuming, interrupted, notes); with `wrap`, wrapped
+    between words at the terminal's width."""
+    err_console.print(escape(text), highlight=False, soft_wrap=not wrap)
 
 
 def warn(warnings: list[str]) -> None:
@@ -194,9 +195,11 @@ def training_bar(title: str, trainer: Any, quiet: bool) -> Iterator[Any]:
         yield on_row
 
 
-def table(title: str, header: list[str], rows: list[list[str]]) -> None:
+def table(title: str, header: list[str], rows: list[list[str]],
+          sections: list[int] | tuple[int, ...] = ()) -> None:
     """A table with every value whole at the terminal's width: split into several, each with
-    the first column, where it is too wide; long headers wrap between words."""
+    the first column, where it is too wide; long headers wrap between words; a rule after each
+    row of `sections` (indices)."""
     header = [plain(h, newlines=False) for h in header]
     rows = [[plain(v, newlines=False) for v in row] for row in rows]
     parts = layout(header, rows, console.width)
@@ -206,8 +209,9 @@ def table(title: str, header: list[str], rows: list[list[str]]) -> None:
         for i, width in zip(part.columns, part.widths):
             drawn.add_column(_markup_escape(header[i]), justify="left" if i == 0 else "right",
                              width=width, overflow="fold")
-        for row in rows:
-            drawn.add_row(*[_markup_escape(row[i]) for i in part.columns])
+        for k, row in enumerate(rows):
+            drawn.add_row(*[_markup_escape(row[i]) for i in part.columns],
+                          end_section=k in sections)
         console.print(drawn)
 
 

@@ -1,6 +1,13 @@
 """`ata compare`: paired differences on any results column, the scenarios a paired CI needs to
 clear 0, and column means, of one result folder or two.
 
+By default (`leaderboards`) one compact table per (setting, level) against one base method
+(greedy unless named): every method's mean with its 95% interval, its paired difference to the
+base with its interval, and P(beats base), all on the same scenarios, those that the base and
+every method of the first folder ran (a second folder's methods are read on those). The full
+matrix of pairings (`compare`: each method of A against the same method of B, or against each
+`base`) is behind ``--full``.
+
 One folder (an evaluation): each method against a base method, on the scenarios both ran. Two
 folders (evaluations or `ata run` folders): each method of A against the same method of B (or
 against `base` of B), on the scenarios both ran; two folders of one method and one cell each
@@ -18,15 +25,15 @@ the noise of the classification outcomes) where the results have it, else of the
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Iterator
 
 import numpy as np
 
 from ata.core.errors import MissionError
 from ata.results.report import md_table
-from ata.results.rows import (BOOTSTRAP_SEED, RESAMPLES, Results, bootstrap_ci,
-                                    check_column, nanmean, paired)
+from ata.results.rows import (BOOTSTRAP_SEED, RESAMPLES, Results, beat_probability,
+                              bootstrap_ci, check_column, nanmean, paired)
 
 BASE = "greedy"
 """The default base of a one-folder comparison, else the first method."""
@@ -44,6 +51,8 @@ class Table:
     what: str
     header: list[str]
     rows: list[list[str]]
+    sections: list[int] = field(default_factory=list)
+    """Rows after which a rule is drawn (the end of the first folder's methods)."""
 
     @property
     def title(self) -> str:
@@ -279,3 +288,163 @@ def compare(a: Results, b: Results | None, columns: list[str], *, base: str | No
     if power:
         return [t for c in columns for t in power_tables(items, c, versus)]
     return difference_tables(items, columns, versus, resamples)
+
+
+# -- the default: one compact table per cell against one base --------------------------------
+@dataclass
+class Entry:
+    """A method of one of the folders as a leaderboard shows it; `tested`: of the first folder
+    (the scenarios of the base and of every tested method are the cell's)."""
+
+    res: Results
+    method: str
+    label: str
+    tested: bool
+
+
+def board_entries(a: Results, b: Results | None, methods: list[str] | None = None,
+                  tags: tuple[str, str] = ("A", "B")) -> list[Entry]:
+    """The methods a leaderboard shows: A's (those of `methods`, if given), then B's; a name
+    found in both folders is tagged with its folder's tag (``random (A)``)."""
+    for m in methods or []:
+        if m not in a.methods:
+            raise MissionError("--methods", None, f"no method {m!r} in the results; methods: "
+                               + ", ".join(a.methods))
+    mine = [m for m in a.methods if methods is None or m in methods]
+    theirs = list(b.methods) if b is not None else []
+    both = set(mine) & set(theirs)
+
+    def label(res: Results, m: str, tag: str) -> str:
+        return f"{res.label(m)} ({tag})" if m in both else res.label(m)
+    return [Entry(a, m, label(a, m, tags[0]), True) for m in mine] + \
+        [Entry(b, m, label(b, m, tags[1]), False) for m in theirs]
+
+
+def board_base(a: Results, b: Results | None, base: str | None,
+               entries: list[Entry]) -> tuple[Entry, list[Entry]]:
+    """The base of a leaderboard and the entries with it: `base` (of B, else of A), by default
+    greedy (B's, else A's), else B's first method (A's first, with one folder)."""
+    folders = [x for x in (b, a) if x is not None]
+    if base is not None:
+        where = next((x for x in folders if base in x.methods), None)
+        if where is None:
+            known = list(dict.fromkeys(m for x in folders for m in x.methods))
+            raise MissionError("--base", None, f"no method {base!r} in the results; methods: "
+                               + ", ".join(known))
+        name = base
+    else:
+        where = next((x for x in folders if BASE in x.methods), folders[0])
+        name = BASE if BASE in where.methods else where.methods[0]
+    found = next((e for e in entries if e.res is where and e.method == name), None)
+    if found is None:                      # left out by --methods: shown all the same
+        found = Entry(where, name, where.label(name), where is a)
+        entries = ([found] + entries) if where is a else entries + [found]
+    return found, entries
+
+
+def _keys(res: Results, sel: np.ndarray) -> dict[tuple[str, int], int]:
+    """The rows `sel` selects by (seed, scenario id), in their order."""
+    c = res.columns
+    return {(str(s), int(i)): int(k) for k, s, i in
+            zip(np.nonzero(sel)[0], c["seed"][sel], c["scenario"][sel])}
+
+
+def _ci_digits(stats: list[tuple[float, float, float]]) -> int:
+    """Decimals that show intervals: two significant digits of the narrowest half-width (0 to
+    4: "+2.3 [+0.4, +4.1]", "-982 [-1099, -867]"), or by size where every interval is a
+    point."""
+    widths = [(h - lo) / 2 for _, lo, h in stats if math.isfinite(h - lo) and h > lo]
+    if not widths:
+        values = [x for s in stats for x in s]
+        return _digits(values) if any(x != 0 for x in values) else 1
+    return int(min(4, max(0, 1 - math.floor(math.log10(min(widths))))))
+
+
+BEATS = "P(beats {})"
+"""The header of a leaderboard's last column: the share of the paired scenarios where a method
+scores more than the base, ties counting half."""
+
+
+def leaderboards(a: Results, b: Results | None, columns: list[str], *,
+                 base: str | None = None, methods: list[str] | None = None,
+                 tags: tuple[str, str] = ("A", "B"),
+                 resamples: int = RESAMPLES, seed: int = BOOTSTRAP_SEED) -> list[Table]:
+    """`ata compare`'s default: a table per (setting, level) and column: every method of A (of
+    `methods`, if given) and of B with its mean [95% CI], its paired difference method - base
+    [95% CI] and P(beats base) (`board_base` chooses the base), on the scenarios that the base
+    and every method of A ran there (a row with fewer says so in a column `n`). Two folders of
+    one cell each are paired across their cells."""
+    rows = None if methods is None else list(methods) + ([base] if base else [])
+    for res, name in ((a, "the first folder"), (b, "the second folder")):
+        if res is not None:
+            for c in columns:
+                check_column(res, c, name, rows if res is a else None)
+    if b is None and len(a.methods) == 1:
+        raise MissionError("", None, "this folder holds one method: give a second folder "
+                           "to pair it with (ata compare RUN OTHER_RUN), or pair it with "
+                           "the published rows (ata compare RUN published)")
+    entries = board_entries(a, b, methods, tags)
+    ref, entries = board_base(a, b, base, entries)
+    across = b is not None and len(a.cells()) == 1 and len(b.cells()) == 1
+    out: list[Table] = []
+    for setting, level in [(s, lv) for s in a.settings for lv in a.levels]:
+        cell_b = b.cells()[0][1:] if across else (setting, level)
+
+        def rows_of(e: Entry) -> dict[tuple[str, int], int]:
+            return _keys(e.res, e.res.select(e.method, *((setting, level) if e.res is a
+                                                         else cell_b)))
+        ref_keys = rows_of(ref)
+        # the scenarios of the cell: those the base and every other method of A ran (of B,
+        # where A holds only the base)
+        tested = [k for k in (rows_of(e) for e in entries if e.tested and e is not ref) if k] \
+            or [k for k in (rows_of(e) for e in entries if e is not ref) if k]
+        if not ref_keys or not tested:
+            continue
+        common = set(ref_keys).intersection(*tested)
+        order = [k for k in ref_keys if k in common]          # the base's row order
+        if not order:
+            continue
+        where = tuple(x if x == y else f"{x} - {y}" for x, y in zip((setting, level), cell_b))
+        for column in columns:
+            r_all = np.asarray(ref.res.columns[column], dtype=float)
+            shown, sections = [], []
+            for e in entries:
+                keys = ref_keys if e is ref else rows_of(e)
+                use = [k for k in order if k in keys]
+                if not use:
+                    continue
+                v = np.asarray(e.res.columns[column], dtype=float)[[keys[k] for k in use]]
+                r = r_all[[ref_keys[k] for k in use]]
+                mean = bootstrap_ci(v, resamples, seed=seed)
+                diff = None if e is ref else bootstrap_ci(v - r, resamples, seed=seed)
+                beats = None if e is ref else beat_probability(v, r)
+                shown.append((e, len(use), mean, diff, beats))
+                if e.tested:
+                    sections = [len(shown) - 1]
+            if len(shown) < 2:
+                continue
+            counts = {s[1] for s in shown}
+            table_rows = []
+            for e, n, (mean, low, high), diff, beats in shown:
+                md = _ci_digits([(mean, low, high)])     # each interval to its own precision
+                row = [e.label] + ([str(n)] if len(counts) > 1 else []) + \
+                    [f"{mean:.{md}f} [{low:.{md}f}, {high:.{md}f}]"]
+                if diff is None:
+                    row += ["base", "-"]
+                else:
+                    dd = _ci_digits([diff])
+                    row += [f"{_signed(diff[0], dd)} [{_signed(diff[1], dd)}, "
+                            f"{_signed(diff[2], dd)}]", f"{beats:.2f}"]
+                table_rows.append(row)
+            header = ["method"] + (["n"] if len(counts) > 1 else []) + \
+                [f"{column} [95% CI]", f"method - {ref.label} [95% CI]",
+                 BEATS.format(ref.label)]
+            what = (f"{column}, {len(order)} paired scenarios" if len(counts) == 1 else column)
+            last = sections[0] if sections and sections[0] < len(shown) - 1 else None
+            out.append(Table(*where, f"{what}, against {ref.label}", header, table_rows,
+                             [] if last is None else [last]))
+    if not out:
+        raise MissionError("", None, "no paired scenarios: the folders share no (seed, "
+                           f"scenario id) of a method and the base {ref.label} at the same "
+                           "setting and level (give the same seed and scenarios, or --base)")
+    return out
