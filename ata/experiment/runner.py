@@ -23,7 +23,7 @@ from ata.experiment.units import (RUN_CHUNK, chunks_of, fixed_chunks, make_units
                                   scenario_ids)
 from ata.runtime import memory
 from ata.runtime.executors import Executor, ProcessExecutor, SerialExecutor
-from ata.runtime.folders import stamped_folder
+from ata.runtime.folders import shown_path, stamped_folder
 from ata.runtime.inputs import shipped_setting
 from ata.runtime.machine import write_provenance
 from ata.session import Session, load_session
@@ -223,7 +223,8 @@ def weights_rows(session: Session) -> list[tuple[str, str]]:
         setting = shipped_setting(value)
         made = "" if setting is None else f"; shipped for setting {setting}" + (
             ", the nearest to this team's size" if m.settings.setting == "custom" else "")
-        rows.append(("weights", f"{value} (read by {', '.join(comps)}{made})"))
+        shown = shown_path(value) if isinstance(value, str) else value   # no machine path
+        rows.append(("weights", f"{shown} (read by {', '.join(comps)}{made})"))
     return rows
 
 

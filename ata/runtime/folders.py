@@ -40,6 +40,25 @@ def safe_name(text: str, fallback: str = "run") -> str:
     return name.strip("._-")[:NAME_LIMIT].strip("._-") or fallback
 
 
+def shown_path(path: str | Path) -> str:
+    """A path as output meant for sharing shows it, without the machine's folders: relative to
+    the working folder where it is under it, else ``~/...`` under the home folder, else as it
+    is (a path the user chose elsewhere)."""
+    text = str(path)
+    if not Path(text).is_absolute():
+        return text
+    try:
+        resolved = Path(text).resolve()
+    except (OSError, RuntimeError):
+        return text
+    for root, prefix in ((Path.cwd, ""), (Path.home, "~/")):
+        try:
+            return prefix + str(resolved.relative_to(root().resolve()))
+        except (OSError, ValueError, RuntimeError, KeyError):
+            continue
+    return text
+
+
 def stamped_folder(label: str) -> Path:
     """A new folder runs/LABEL-TIME, created now (LABEL made safe, `safe_name`): two runs
     started in the same second get LABEL-TIME and LABEL-TIME-2."""
