@@ -52,11 +52,12 @@ from typing import Any
 import numpy as np
 
 from ata import __version__
+from ata.core.components import WORLD_KINDS
 from ata.core.errors import MissionError
-from ata.runtime.machine import MODEL_REVISION, PROVENANCE
 from ata.core.mission import loads_toml
 from ata.results.rows import Results, read_results
 from ata.runtime.folders import replace_folder, safe_name, shown_path
+from ata.runtime.machine import MODEL_REVISION, PROVENANCE
 from ata.runtime.inputs import read_json_object
 from ata.session import inputs_of, load_session
 
@@ -66,7 +67,6 @@ DEFAULT = "paper"
 """The set ``published`` names alone."""
 ROWS, MANIFEST = "rows.csv.gz", "manifest.json"
 FORMAT = 1
-WORLD_KINDS = ("task_model", "human_model", "robot_model", "perturbation", "injector")
 """The components whose code and settings make the world a method is scored in."""
 WORLD_MISSION_KEYS = ("setting", "humans", "robots", "tasks", "horizon_s", "epoch_s",
                       "tick_s", "uncertainty", "fatigue_variance", "event_probability")
