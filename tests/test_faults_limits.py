@@ -147,9 +147,12 @@ def test_runs_at_two_levels_are_labelled_with_both(cli, small, tmp_path):
     a, b = tmp_path / "a", tmp_path / "b"
     assert cli("run", small, "-q", "-o", a).exit_code == 0
     assert cli("run", small, "-q", "--set", "mission.uncertainty='high'", "-o", b).exit_code == 0
-    result = cli("compare", a, b)
+    result = cli("compare", a, b, "--full")
     assert result.exit_code == 0, result.output
     assert "setting custom, medium - high uncertainty: A - B, paired" in flat(result.output)
+    compact = cli("compare", a, b)
+    assert compact.exit_code == 0, compact.output
+    assert "medium - high uncertainty" in flat(compact.output)
 
 
 def test_a_lazy_plugin_that_registers_nothing_is_named(cli, small, tmp_path, monkeypatch):
