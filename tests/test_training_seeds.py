@@ -190,3 +190,15 @@ def test_the_curves_across_seeds_draw_each_seed_their_mean_the_middle_half_and_t
     dashed = [ln for ln in ax.get_lines() if ln.get_linestyle() == "--"]
     assert [ln.get_xdata()[0] for ln in dashed] == [logs[0].starts[1]]   # where ita begins
     plt.close(fig)
+
+
+def test_eval_of_one_run_folder_pairs_its_weights_with_greedy(seeds_dir, cli, tmp_path):
+    result = cli("eval", seeds_dir / "seed-1", "-n", 2, "-o", tmp_path / "ev", "-e", "serial",
+                 "-q")
+    assert result.exit_code == 0, result.output
+    with open(tmp_path / "ev" / "results.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    methods = {r["method"] for r in rows}
+    assert "greedy" in methods and len(methods) == 2, methods
+    assert {r["scenario"] for r in rows if r["method"] == "greedy"} == \
+        {r["scenario"] for r in rows if r["method"] != "greedy"}

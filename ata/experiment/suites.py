@@ -13,7 +13,7 @@ from ata.core import mission as mission_mod
 from ata.core.errors import MissionError
 from ata.published import PREFIX as PUBLISHED_PREFIX
 from ata.published import published_method
-from ata.training.folders import trained_methods, trained_suite
+from ata.training.folders import is_seeds_folder, trained_methods, trained_suite
 
 SUITE_KEYS = {"name": "a label for the evaluation",
               "description": "free text",
@@ -104,11 +104,15 @@ def _mission_path(spec: str, base: Path, where: str, path: str) -> str:
 
 def load_suite(path: str | Path) -> Suite:
     """Read a suite file, or a mission file (a table [mission]) as a one-method suite; an `ata
-    train` folder is the suite of its seeds against greedy, or its run's trained weights."""
+    train` folder is the suite of its seeds against greedy, or its run's trained weights
+    against greedy at the training mission's setting and level."""
+    run_folder = Path(path).is_dir() and not is_seeds_folder(Path(path))
     if Path(path).is_dir():             # an `ata train` folder: its suite, or its mission
         path = trained_suite(path)
     path = str(path)
     raw = mission_mod.read_toml(path)
+    if run_folder:
+        raw = _against_greedy(raw, path)
     if "suite" not in raw and "method" not in raw:
         if "mission" not in raw:
             raise MissionError("", None, "neither a suite (a table [suite] and [[method]] "
@@ -193,3 +197,17 @@ def load_suite(path: str | Path) -> Suite:
             continue
         suite.methods.append(spec)
     return suite
+
+
+def _against_greedy(mission: dict[str, Any], path: str) -> dict[str, Any]:
+    """The suite of a training run folder: its trained weights (its resolved mission, `path`)
+    and greedy, paired, at the training mission's setting and level."""
+    head = mission.get("mission", {}) if isinstance(mission.get("mission"), dict) else {}
+    label = str(head.get("name", "trained"))
+    label = "trained" if label == "greedy" else label
+    suite: dict[str, Any] = {"name": label, "pairs": [[label, "greedy"]]}
+    for key, name in (("setting", "settings"), ("uncertainty", "uncertainty")):
+        if isinstance(head.get(key), str):
+            suite[name] = [head[key]]
+    return {"suite": suite, "method": [{"name": label, "mission": path},
+                                       {"name": "greedy", "mission": "builtin:greedy"}]}
