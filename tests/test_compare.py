@@ -389,8 +389,8 @@ def test_the_default_is_a_table_per_cell_of_every_method_against_greedy(cli, tmp
     assert [(t.setting, t.level) for t in tables] == [("a", "low"), ("b", "high")]
     assert tables[0].title == ("setting a, low uncertainty: score, 4 paired scenarios, against "
                                "greedy")
-    assert tables[0].header == ["method", "score [95% CI]", "method - greedy [95% CI]",
-                                "P(beats greedy)"]
+    assert tables[0].header == ["method", "score [95% CI]", "method - base [95% CI]",
+                                "P(beats base)"]
     # greedy's rows reversed: its order pairs them, (103, 102, 101, 100)
     mean = [bootstrap_ci(v) for v in ([40.0, 30.0, 20.0, 10.0], [52.5, 42.5, 32.5, 22.5],
                                       [20.0, 40.0, 10.0, 15.0])]

@@ -437,8 +437,7 @@ def leaderboards(a: Results, b: Results | None, columns: list[str], *,
                             f"{_signed(diff[2], dd)}]", f"{beats:.2f}"]
                 table_rows.append(row)
             header = ["method"] + (["n"] if len(counts) > 1 else []) + \
-                [f"{column} [95% CI]", f"method - {ref.label} [95% CI]",
-                 BEATS.format(ref.label)]
+                [f"{column} [95% CI]", "method - base [95% CI]", BEATS.format("base")]
             what = (f"{column}, {len(order)} paired scenarios" if len(counts) == 1 else column)
             last = sections[0] if sections and sections[0] < len(shown) - 1 else None
             out.append(Table(*where, f"{what}, against {ref.label}", header, table_rows,
