@@ -60,7 +60,8 @@ def recipe_estimate(aux_steps: int = 20, ita_steps: int = 2, ctr_steps: int = 1,
 
     The trainer of ata/missions/train_ata_hrl.toml is built as `ata train --plugins ctr,aux`
     builds it; its phases' own calls are timed: one teacher batch of reconstruction data
-    (``aux.rows``), `aux_steps` aux steps, `ita_steps` ITA and `ctr_steps` CTR steps, one
+    (``aux.rows``), `aux_steps` aux steps, `ita_steps` ITA and `ctr_steps` CTR steps (each
+    after one untimed step: a fresh trainer's first step costs up to twice a later one), one
     validation of each policy phase and one checkpoint write; `overrides` (``TABLE.KEY=VALUE``,
     as ``--set``) change the recipe's settings. Returns (part, measured seconds, calls measured,
     calls in the recipe, extrapolated seconds) rows: linear in the calls."""
@@ -91,7 +92,8 @@ def recipe_estimate(aux_steps: int = 20, ita_steps: int = 2, ctr_steps: int = 1,
         steps = phases[part.name]
         label = part.name.upper()
         n = ita_steps if part.name == "ita" else ctr_steps
-        rows.append((f"{label} steps", clock(part.step, n), n, steps))
+        part.step(0)        # untimed: a fresh trainer's first step pays for its warm-up
+        rows.append((f"{label} steps", clock(lambda k: part.step(k + 1), n), n, steps))
         rows.append((f"{label} validations", clock(lambda _k: trainer.validate(part.name), 1), 1,
                      validations(steps, s.eval_every)))
     saves = sum(phases[p] // s.checkpoint_every + validations(phases[p], s.eval_every)
