@@ -10,7 +10,7 @@ import typer
 import typer.core
 
 from ata import __version__
-from ata.cli import terminal
+import ata.cli.terminal as terminal
 from ata.cli.terminal import console, err_console, escape, note
 
 class _ReflowedHelp(typer.core.TyperGroup):

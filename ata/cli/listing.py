@@ -10,7 +10,7 @@ from rich.table import Table
 from rich.text import Text
 
 from ata.cli.common import PluginsOption, _split, app, user_errors
-from ata.cli import terminal
+import ata.cli.terminal as terminal
 from ata.cli.terminal import console
 
 

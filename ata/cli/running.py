@@ -9,7 +9,7 @@ import typer
 
 from ata.cli.common import (AddressOption, ForceOption, IsolateOption, PluginsOption, QuietOption,
                             SetOption, TimeoutOption, _split, _split_or_none, app, user_errors)
-from ata.cli import terminal
+import ata.cli.terminal as terminal
 from ata.cli.terminal import console, escape, note
 
 

@@ -8,7 +8,7 @@ from typing import List, Optional
 
 import typer
 
-from ata.cli import terminal
+import ata.cli.terminal as terminal
 from ata.cli.common import AddressOption, SetOption, _split, app, user_errors
 from ata.cli.terminal import console, escape, note
 

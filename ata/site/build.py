@@ -24,7 +24,8 @@ from ata.results.report import (ABLATION_PREFIX, DEFAULT_REFERENCE, Report, figu
                                 figures as draw, pyplot)
 from ata.results.rows import RESAMPLES
 from ata.runtime.folders import prepare_out_dir, refuse_other_kind, writing
-from ata.site import assets, pages
+from ata.site.assets import CSS, JS
+from ata.site.pages import Tier, index_html, method_html, page_name
 from ata.site.board import Board, build_board, merged, report_cells, report_paired
 from ata.site.sources import Source, load_source
 from ata.site.verify import read_records, tier, verify
@@ -38,7 +39,7 @@ class Site:
     out: Path
     sources: list[Source]
     board: Board
-    tiers: dict[int, pages.Tier]
+    tiers: dict[int, Tier]
     files: list[str]
 
 
@@ -87,15 +88,15 @@ def build_site(specs: list[str], out: str | Path, *, base: str | None = None,
         shown = _figures(board, sources, Path(tmp), draw_figures) if with_figures else []
         for path in sorted(Path(tmp).glob("*.png")):     # PNG alone: half the bytes to host
             files[path.name] = path.read_bytes()
-    files["index.html"] = pages.index_html(sources, board, tiers, shown, command).encode()
+    files["index.html"] = index_html(sources, board, tiers, shown, command).encode()
     for k, src in enumerate(sources):
         for name, info in src.methods.items():
             entries = [e for e in board.entries if e.source is src and e.method == name]
             if entries:
-                files[pages.page_name(src, name)] = pages.method_html(
+                files[page_name(src, name)] = method_html(
                     src, info, entries[0].label, entries, tiers[k], board.base).encode()
-    files["site.css"] = assets.CSS.encode()
-    files["site.js"] = assets.JS.encode()
+    files["site.css"] = CSS.encode()
+    files["site.js"] = JS.encode()
     # every record of these sets' rows (once each), whether it made its set reproduced or not:
     # a page rebuilt from them says the same
     digests = {src.digest for src in sources if src.digest}
@@ -138,7 +139,7 @@ def _number(x: Any) -> Any:
     return None if isinstance(x, float) and not math.isfinite(x) else x
 
 
-def site_data(sources: list[Source], board: Board, tiers: dict[int, pages.Tier],
+def site_data(sources: list[Source], board: Board, tiers: dict[int, Tier],
               command: str) -> dict[str, Any]:
     """site.json: the sets and every leaderboard row, for programs."""
     order = {id(src): k for k, src in enumerate(sources)}
