@@ -202,3 +202,26 @@ def test_eval_of_one_run_folder_pairs_its_weights_with_greedy(seeds_dir, cli, tm
     assert "greedy" in methods and len(methods) == 2, methods
     assert {r["scenario"] for r in rows if r["method"] == "greedy"} == \
         {r["scenario"] for r in rows if r["method"] != "greedy"}
+
+
+def test_seeds_start_from_the_same_seed_of_a_folder_of_seeds(seeds_dir, cli, tmp_path):
+    """`--set ata_hrl.ita_from=SEEDS` with --seeds: seed S starts from SEEDS/seed-S/best.pt;
+    a seed the folder lacks, or the folder without --seeds, is refused before any work."""
+    import tomllib
+    out = tmp_path / "variants"
+    result = cli("train", "--plugins", "ita", "--preset", "smoke", "--seeds", "2", "-e",
+                 "serial", "-o", out, "--set", f"ata_hrl.ita_from={seeds_dir}",
+                 "--set", "ata_hrl.aux_steps=0", *TINY)
+    assert result.exit_code == 0, result.output
+    for s in (0, 1):
+        mission = tomllib.loads((out / f"seed-{s}" / "mission.resolved.toml").read_text())
+        assert mission["ata_hrl"]["ita_from"] == str((seeds_dir / f"seed-{s}" / "best.pt")
+                                                     .resolve())
+        assert mission["ata_hrl"]["seed"] == s
+    result = cli("train", "--plugins", "ita", "--seeds", "0,5", "-o", tmp_path / "five",
+                 "--set", f"ata_hrl.ita_from={seeds_dir}")
+    assert result.exit_code == 2 and "without seed 5" in result.output
+    assert not (tmp_path / "five").exists()
+    result = cli("train", "--plugins", "ita", "-o", tmp_path / "one",
+                 "--set", f"ata_hrl.ita_from={seeds_dir}")
+    assert result.exit_code == 2 and "is a folder of seeds" in result.output

@@ -89,6 +89,9 @@ def train(mission: str | None = None, overrides: list[str] | None = None,
         factory = session.registry.get("trainer", name, "[components] trainer").factory
         overrides = preset_overrides(name, factory, preset) + overrides
         session = load_session(source, overrides, extra)
+    # each seed's overrides (a folder of seeds in a value: its run of the seed), refused
+    # before any folder is made
+    per_seed = {s: seed_overrides(overrides, s) for s in values or [None]}
     # a folder of seeds and a training run are folders of two kinds: neither is written over
     # by the other
     run_dir = prepare_out_dir(out, kind="train" if seeds is None else "seeds") if out else \
@@ -102,7 +105,7 @@ def train(mission: str | None = None, overrides: list[str] | None = None,
                            f"train --resume {run_dir}, or choose another folder")
     for s in values:
         folder = run_dir / fd.seed_dir_name(s)
-        seeded = overrides + [f"{name}.seed={s}"]
+        seeded = per_seed[s] + [f"{name}.seed={s}"]
         one = with_weights(source, seeded, extra, load_session(source, seeded, extra), folder)
         folder.mkdir(parents=True, exist_ok=True)
         if not (folder / "log.csv").exists():
@@ -114,6 +117,29 @@ def train(mission: str | None = None, overrides: list[str] | None = None,
     on_start(run_dir, values)
     train_seeds(run_dir, values, executor, workers, address, on_seed)
     return Trained(run_dir, None, values)
+
+
+def seed_overrides(overrides: list[str], seed: int | None) -> list[str]:
+    """The ``--set`` overrides of seed `seed`: a value naming a folder of seeds (weights to
+    start from, ``ata_hrl.ita_from=runs/ita``, say) names that folder's run of the same seed,
+    ``DIR/seed-S/best.pt``. Without a seed (no ``--seeds``) such a value is refused."""
+    out = []
+    for text in overrides:
+        key, sep, value = text.partition("=")
+        folder = Path(value.strip().strip("'\""))
+        if sep and value.strip() and fd.is_seeds_folder(folder):
+            where = f"--set {key.strip()}"
+            if seed is None:
+                raise MissionError(where, None, f"{folder} is a folder of seeds: train with "
+                                   "--seeds, each seed starting from that folder's run of the "
+                                   "same seed, or name one run's best.pt")
+            if seed not in fd.read_seeds(folder)["seeds"]:
+                raise MissionError(where, None, f"{folder} is a folder of seeds without seed "
+                                   f"{seed}: train the same seeds as it holds")
+            best = folder / fd.seed_dir_name(seed) / "best.pt"
+            text = f"{key.strip()}={str(best.resolve())!r}"
+        out.append(text)
+    return out
 
 
 def with_weights(source: str, overrides: list[str], extra: list[str] | None,

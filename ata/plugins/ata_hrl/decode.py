@@ -78,6 +78,14 @@ class DecodeTrace:
     def stacked(self, kind: str) -> dict[str, np.ndarray]:
         return {k: np.stack(v) for k, v in self.steps[kind].items()}
 
+    def take(self, rows: slice) -> "DecodeTrace":
+        """The trace of the episodes `rows` alone (views of this one's arrays)."""
+        out = DecodeTrace({kind: {k: [a[rows] for a in v] for k, v in d.items()}
+                           for kind, d in self.steps.items()})
+        if self.keep is not None:
+            out.keep = {k: v[rows] for k, v in self.keep.items()}
+        return out
+
 
 def _finite(x: np.ndarray, **fill) -> np.ndarray:
     """`x` with nan and inf replaced (np.nan_to_num), without the copy when all is finite."""

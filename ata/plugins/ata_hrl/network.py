@@ -18,13 +18,14 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
+import numpy as np
 import torch
 from torch import nn
 from torch.nn import functional as F
 
 from ata.plugins.ata_hrl.inputs import (CLS_FEATURES, KEEP_FEATURES, NAV_FEATURES,
                                         POI_FEATURES, ROBOT_FEATURES)
-from ata.plugins.ata_hrl.features import GROUPS
+from ata.plugins.ata_hrl.features import GROUPS, to_tensors
 from ata.plugins.ata_hrl.status import STATUS_FEATURES
 
 NEG = -1e9
@@ -88,6 +89,23 @@ class Encoder(nn.Module):
         return dict(zip(GROUPS, torch.split(out, sizes, dim=1)))
 
 
+def encode_once(encoder: Encoder, feats: dict[str, np.ndarray], samples: int,
+                device: torch.device | None = None) -> dict[str, torch.Tensor]:
+    """`encoder` on the I features `feats` (numpy, on `device`) where each run of `samples`
+    consecutive episodes is one scenario (a training step's samples share their scenario's I):
+    the encoder reads each scenario once and its embeddings are repeated for its samples (the
+    repeats' gradients add up into the one pass). Episodes that do not come in such runs are
+    encoded one by one."""
+    E = feats["tasks"].shape[0]
+    if samples > 1 and E % samples == 0:
+        firsts = {g: v[::samples] for g, v in feats.items()}
+        if all((v.reshape(E // samples, samples, *v.shape[1:]) == firsts[g][:, None]).all()
+               for g, v in feats.items()):
+            return {g: v.repeat_interleave(samples, 0)
+                    for g, v in encoder(to_tensors(firsts, device)).items()}
+    return encoder(to_tensors(feats, device))
+
+
 def _linear(layer: nn.Linear, x: torch.Tensor) -> torch.Tensor:
     """`layer(x)` by `F.linear` (its weight and its bias, None where it has none): the same op
     without the module's per-call machinery."""
@@ -133,8 +151,12 @@ class StepScorer(nn.Module):
         row_cand and row_ctx (M,) each row's index into them; each token is projected once."""
         logit = self.log_scale.exp() * prior
         if residual:
-            hid = self._hidden(_linear(self.feat, feats) + _linear(self.cand, cand)[row_cand]
-                               + _linear(self.ctx, ctx)[row_ctx])
+            # the rows gathered by index_select (whose backward adds into the tokens' rows,
+            # cheaper than an indexing's) and summed in place: the same values as forward's
+            x = _linear(self.feat, feats)
+            x.add_(_linear(self.cand, cand).index_select(0, row_cand))
+            x.add_(_linear(self.ctx, ctx).index_select(0, row_ctx))
+            hid = torch.relu(_linear(self.out[1], torch.relu_(x)))
             logit = self._tail(logit, hid, feats)
         return logit
 

@@ -10,6 +10,7 @@ the ITA learned to, with greedy's keep-or-repair prior.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Iterator
 
 import numpy as np
 import torch
@@ -18,6 +19,7 @@ from ata.core.settings import param
 from ata.plugins.ata_hrl import decode as D
 from ata.plugins.ata_hrl.components import Recorder
 from ata.plugins.ata_hrl.features import GROUPS, to_tensors
+from ata.plugins.ata_hrl.network import encode_once
 from ata.plugins.ata_hrl.phases.policy import PolicyPhase, per_epoch_advantage, scaled
 
 
@@ -63,11 +65,12 @@ class CtrPhase(PolicyPhase):
         if self.tr.counters["ctr"] == 0 and self.tr.trains_ita:
             tr_from_ita(self.tr.net)
 
-    def loss(self, rec: Recorder, R: dict[str, np.ndarray]) -> torch.Tensor:
+    def parts(self, rec: Recorder, R: dict[str, np.ndarray]) -> Iterator[torch.Tensor]:
+        """One part: pi_C's and pi_TR's terms (each scenario's samples encoded once)."""
         tr, K, dev = self.tr, self.tr.s.samples, self.tr.device
         net = tr.net
         loss = torch.zeros((), device=dev)
-        emb_i = net.tr.encoder(to_tensors(rec.inherent, dev))
+        emb_i = encode_once(net.tr.encoder, rec.inherent, K, dev)
         if tr.trains_cond and rec.cond_choice:
             # pi_C decides at epochs 1 .. T-1: each decision against R_C from its epoch on
             logp = condition_log_prob(net, rec, emb_i)                   # (E, T-1)
@@ -84,7 +87,7 @@ class CtrPhase(PolicyPhase):
                 advs.append(adv_all[item["rows"], item["epoch"]])
             loss = loss - (scaled(np.concatenate(advs), dev) * torch.cat(terms)).sum() \
                 / R["total"].size
-        return loss
+        yield loss
 
 
 def condition_log_prob(net, rec: Recorder, emb_i: dict[str, torch.Tensor]) -> torch.Tensor:

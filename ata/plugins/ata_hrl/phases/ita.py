@@ -8,6 +8,7 @@ and skips the phase: the full method, its ablations and AtRL-TR can share one IT
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Iterator
 
 import numpy as np
 import torch
@@ -15,8 +16,14 @@ import torch
 from ata.core.settings import param
 from ata.plugins.ata_hrl import decode as D
 from ata.plugins.ata_hrl.components import Recorder
-from ata.plugins.ata_hrl.features import to_tensors
+from ata.plugins.ata_hrl.network import encode_once
 from ata.plugins.ata_hrl.phases.policy import PolicyPhase, scaled, shared_baseline_advantage
+
+
+UPDATE_GROUPS = 4
+"""An ITA update takes its gradient in this many parts of whole scenarios: a step's rows
+(about 350,000 scored candidates in setting (a)) in parts whose tensors fit the caches; 1.2 to
+1.3 times faster on the 2-core machine, the same gradient up to float rounding."""
 
 
 @dataclass
@@ -40,10 +47,16 @@ class ItaPhase(PolicyPhase):
     def lr(self) -> float:
         return self.tr.s.lr
 
-    def loss(self, rec: Recorder, R: dict[str, np.ndarray]) -> torch.Tensor:
-        """-(advantage * log-probability of the sample's decisions), averaged over decisions."""
-        net = self.tr.net
-        emb = net.ita.encoder(to_tensors(rec.inherent, self.tr.device))
-        logp, _ = D.trace_log_prob(net.ita, emb, rec.ita)
-        adv = scaled(shared_baseline_advantage(R["R_ITA"], self.tr.s.samples), self.tr.device)
-        return -(adv * logp).mean()
+    def parts(self, rec: Recorder, R: dict[str, np.ndarray]) -> Iterator[torch.Tensor]:
+        """-(advantage * log-probability of the sample's decisions), averaged over decisions,
+        in parts of whole scenarios (`UPDATE_GROUPS` at most); each scenario's samples are
+        encoded once."""
+        net, K, dev = self.tr.net, self.tr.s.samples, self.tr.device
+        E = R["R_ITA"].size
+        adv = scaled(shared_baseline_advantage(R["R_ITA"], K), dev)
+        for group in np.array_split(np.arange(E // K), min(UPDATE_GROUPS, E // K)):
+            rows = slice(group[0] * K, (group[-1] + 1) * K)
+            feats = {g: v[rows] for g, v in rec.inherent.items()}
+            emb = encode_once(net.ita.encoder, feats, K, dev)
+            logp, _ = D.trace_log_prob(net.ita, emb, rec.ita.take(rows))
+            yield -(adv[rows] * logp).sum() / E

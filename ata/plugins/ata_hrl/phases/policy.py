@@ -116,6 +116,13 @@ class PolicyPhase:
         return False
 
     def loss(self, rec: Recorder, R: dict[str, np.ndarray]) -> torch.Tensor:
+        """The step's loss: the sum of its parts."""
+        return sum(self.parts(rec, R))
+
+    def parts(self, rec: Recorder, R: dict[str, np.ndarray]) -> Iterator[torch.Tensor]:
+        """The step's loss in parts whose sum it is: the update takes each part's gradient in
+        turn (smaller passes, whose tensors stay in the processor's caches) and then steps
+        once on their sum."""
         raise NotImplementedError
 
     def phase(self) -> Phase:
@@ -149,16 +156,18 @@ class PolicyPhase:
         returns the loss."""
         tr = self.tr
         with on_device(tr.net, [tr.opt], tr.device):
-            loss = self.loss(rec, R)
-            self.update(loss)
-            return loss.item()
+            tr.opt.zero_grad()
+            loss = 0.0
+            for part in self.parts(rec, R):
+                part.backward()
+                loss += part.item()
+            self.update()
+            return loss
 
-    def update(self, loss: torch.Tensor) -> None:
-        """One Adam step of the policies on `loss`, their gradients clipped (not the
+    def update(self) -> None:
+        """One Adam step of the policies on the gradients taken, clipped (not the
         reconstructors')."""
         tr = self.tr
-        tr.opt.zero_grad()
-        loss.backward()
         if tr.s.grad_clip > 0:
             torch.nn.utils.clip_grad_norm_(tr.policy_params, tr.s.grad_clip)
         tr.opt.step()
