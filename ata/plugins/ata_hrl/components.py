@@ -27,7 +27,7 @@ from ata.plugins.ata_hrl.decoder import Decoder
 from ata.plugins.ata_hrl.inputs import DecodeSettings
 from ata.plugins.ata_hrl.features import (GROUPS, inherent_features, seen_state, state_column,
                                           state_features, to_tensors)
-from ata.plugins.ata_hrl.network import ATAHRLNet, COND_FEATURES
+from ata.plugins.ata_hrl.network import ATAHRLNet, COND_FEATURES, encode_once
 from ata.plugins.ata_hrl.status import StatusTracker, guesses as status_guesses
 from ata.model.fatigue import FatigueBelief
 from ata.model.events import EventWatch
@@ -172,7 +172,7 @@ class AttentionITA(LearnedComponent):
             self.recorder.inherent = feats
             trace = self.recorder.ita = D.DecodeTrace()
         with torch.no_grad():
-            emb = self.net.ita.encoder(to_tensors(feats))
+            emb = encode_once(self.net.ita.encoder, feats)
         return D.decode(dec, self.net.ita, emb, self.chooser(ctx, "attention"),
                         residual=self.settings.learned, trace=trace)
 
@@ -232,7 +232,7 @@ class CTRPolicy(LearnedComponent):
             if self.recorder is not None:
                 self.recorder.inherent = inherent
             with torch.no_grad():
-                self.emb_i = self.net.tr.encoder(to_tensors(inherent))
+                self.emb_i = encode_once(self.net.tr.encoder, inherent)
         self.raw = state_features(ctx.observed)
         self.seen = seen_state(ctx)
         with torch.no_grad():

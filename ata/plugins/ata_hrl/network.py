@@ -89,21 +89,24 @@ class Encoder(nn.Module):
         return dict(zip(GROUPS, torch.split(out, sizes, dim=1)))
 
 
-def encode_once(encoder: Encoder, feats: dict[str, np.ndarray], samples: int,
+def encode_once(encoder: Encoder, feats: dict[str, np.ndarray],
                 device: torch.device | None = None) -> dict[str, torch.Tensor]:
-    """`encoder` on the I features `feats` (numpy, on `device`) where each run of `samples`
-    consecutive episodes is one scenario (a training step's samples share their scenario's I):
-    the encoder reads each scenario once and its embeddings are repeated for its samples (the
-    repeats' gradients add up into the one pass). Episodes that do not come in such runs are
-    encoded one by one."""
+    """`encoder` on the I features `feats` (numpy, on `device`), reading each run of equal
+    consecutive episodes once (a training step's samples of one scenario share its I): the
+    run's embeddings are repeated for its episodes, and their gradients add up into the one
+    pass. Where no two consecutive episodes are equal (an evaluation's batch), this is
+    `encoder(feats)` itself."""
     E = feats["tasks"].shape[0]
-    if samples > 1 and E % samples == 0:
-        firsts = {g: v[::samples] for g, v in feats.items()}
-        if all((v.reshape(E // samples, samples, *v.shape[1:]) == firsts[g][:, None]).all()
-               for g, v in feats.items()):
-            return {g: v.repeat_interleave(samples, 0)
-                    for g, v in encoder(to_tensors(firsts, device)).items()}
-    return encoder(to_tensors(feats, device))
+    same = np.ones(max(E - 1, 0), bool)
+    for v in feats.values():
+        if E > 1:
+            same &= (v[1:] == v[:-1]).reshape(E - 1, -1).all(1)
+    if not same.any():
+        return encoder(to_tensors(feats, device))
+    starts = np.flatnonzero(np.concatenate([[True], ~same]))
+    counts = torch.as_tensor(np.diff(np.append(starts, E)), device=device)
+    emb = encoder(to_tensors({g: v[starts] for g, v in feats.items()}, device))
+    return {g: v.repeat_interleave(counts, 0, output_size=E) for g, v in emb.items()}
 
 
 def _linear(layer: nn.Linear, x: torch.Tensor) -> torch.Tensor:

@@ -70,7 +70,7 @@ class CtrPhase(PolicyPhase):
         tr, K, dev = self.tr, self.tr.s.samples, self.tr.device
         net = tr.net
         loss = torch.zeros((), device=dev)
-        emb_i = encode_once(net.tr.encoder, rec.inherent, K, dev)
+        emb_i = encode_once(net.tr.encoder, rec.inherent, dev)
         if tr.trains_cond and rec.cond_choice:
             # pi_C decides at epochs 1 .. T-1: each decision against R_C from its epoch on
             logp = condition_log_prob(net, rec, emb_i)                   # (E, T-1)

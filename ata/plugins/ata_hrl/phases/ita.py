@@ -57,6 +57,6 @@ class ItaPhase(PolicyPhase):
         for group in np.array_split(np.arange(E // K), min(UPDATE_GROUPS, E // K)):
             rows = slice(group[0] * K, (group[-1] + 1) * K)
             feats = {g: v[rows] for g, v in rec.inherent.items()}
-            emb = encode_once(net.ita.encoder, feats, K, dev)
+            emb = encode_once(net.ita.encoder, feats, dev)
             logp, _ = D.trace_log_prob(net.ita, emb, rec.ita.take(rows))
             yield -(adv[rows] * logp).sum() / E
