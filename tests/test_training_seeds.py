@@ -225,3 +225,12 @@ def test_seeds_start_from_the_same_seed_of_a_folder_of_seeds(seeds_dir, cli, tmp
     result = cli("train", "--plugins", "ita", "-o", tmp_path / "one",
                  "--set", f"ata_hrl.ita_from={seeds_dir}")
     assert result.exit_code == 2 and "is a folder of seeds" in result.output
+    # a seed still training (no trained.json) is not started from: its best.pt still moves
+    import shutil
+    moving = tmp_path / "moving"
+    shutil.copytree(seeds_dir, moving)
+    (moving / "seed-1" / "trained.json").unlink()
+    result = cli("train", "--plugins", "ita", "--seeds", "2", "-o", tmp_path / "early",
+                 "--set", f"ata_hrl.ita_from={moving}")
+    assert result.exit_code == 2 and "seed 1 of" in result.output \
+        and "has not finished" in result.output

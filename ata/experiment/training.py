@@ -136,7 +136,13 @@ def seed_overrides(overrides: list[str], seed: int | None) -> list[str]:
             if seed not in fd.read_seeds(folder)["seeds"]:
                 raise MissionError(where, None, f"{folder} is a folder of seeds without seed "
                                    f"{seed}: train the same seeds as it holds")
-            best = folder / fd.seed_dir_name(seed) / "best.pt"
+            run = folder / fd.seed_dir_name(seed)
+            if not (run / fd.REPORT).is_file():
+                # its best.pt is still moving: a start from it would not be the run's result
+                raise MissionError(where, None, f"seed {seed} of {folder} has not finished "
+                                   f"training (no {fd.REPORT} in {run}): let it finish, or "
+                                   f"resume it with ata train --resume {folder}")
+            best = run / "best.pt"
             text = f"{key.strip()}={str(best.resolve())!r}"
         out.append(text)
     return out

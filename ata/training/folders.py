@@ -20,6 +20,8 @@ from ata.core.mission import read_toml
 
 SEEDS_FILE = "seeds.json"
 RESOLVED = "mission.resolved.toml"
+REPORT = "trained.json"
+"""A finished run's summary, written as its last step: a run without it has not finished."""
 
 
 def is_seeds_folder(path: str | Path) -> bool:
@@ -127,7 +129,7 @@ def trained_methods(folder: str | Path, label: str) -> list[tuple[str, str]]:
 def write_report(folder: Path, report: dict[str, Any]) -> None:
     """trained.json: a finished run's summary (best held-out score, training time, steps)."""
     keep = {k: report[k] for k in ("best_eval", "wall_s", "counters") if k in report}
-    (Path(folder) / "trained.json").write_text(json.dumps(keep, indent=2, default=float)
+    (Path(folder) / REPORT).write_text(json.dumps(keep, indent=2, default=float)
                                                + "\n", encoding="utf-8")
 
 
