@@ -31,7 +31,9 @@ METHOD_KEYS = {"name": "the method's label in results and reports",
                "plugins": "optional plugins to load",
                "settings": "team settings for this method (instead of the suite's)",
                "uncertainty": "uncertainty levels for this method (instead of the suite's)",
-               "setting": "per-setting tables: [method.setting.b] set = [...]"}
+               "setting": "per-setting tables: [method.setting.b] set = [...]",
+               "seeds": "training seeds: one method per seed S, named 'NAME seed S', with "
+                        "{seed} in its set values replaced by S"}
 FIXED_KEYS = ("setting", "uncertainty", "seed", "scenarios", "first_scenario")
 """[mission] keys the evaluation sets itself; a method may not override them."""
 BUILTIN_MISSIONS = Path(__file__).resolve().parent.parent / "missions"
@@ -190,6 +192,9 @@ def load_suite(path: str | Path) -> Suite:
                 raise MissionError(where, "set", f"{text!r}: the evaluation sets mission."
                                    f"{keys[1]} itself (use the suite's settings, uncertainty, "
                                    "scenarios and seed)", file=path)
+        if "seeds" in table:
+            suite.methods += _per_seed(spec, table["seeds"], where, path)
+            continue
         if spec.backend is None and Path(spec.mission).is_dir():
             # an `ata train` folder: its trained weights; each seed's, a method each
             suite.methods += [replace(spec, name=n, mission=m)
@@ -197,6 +202,27 @@ def load_suite(path: str | Path) -> Suite:
             continue
         suite.methods.append(spec)
     return suite
+
+
+def _per_seed(spec: MethodSpec, seeds: Any, where: str, path: str) -> list[MethodSpec]:
+    """A method of several training seeds: one method a seed, ``NAME seed S``, each with
+    ``{seed}`` in its set values (and its settings' set values) replaced by S."""
+    if not isinstance(seeds, list) or not seeds or len(set(map(str, seeds))) != len(seeds) \
+            or not all(isinstance(x, int) and not isinstance(x, bool) and x >= 0 for x in seeds):
+        raise MissionError(where, "seeds", "must be a list of distinct integers >= 0",
+                           file=path)
+    texts = spec.overrides + [t for v in spec.per_setting.values() for t in v]
+    if spec.backend is not None or Path(spec.mission).is_dir() \
+            or not any("{seed}" in t for t in texts):
+        raise MissionError(where, "seeds", "needs {seed} in a set value (the weights of each "
+                           "seed), else every seed would be the same method; a folder of "
+                           "seeds is expanded without it", file=path)
+
+    def put(values: list[str], seed: int) -> list[str]:
+        return [t.replace("{seed}", str(seed)) for t in values]
+    return [replace(spec, name=f"{spec.name} seed {s}", overrides=put(spec.overrides, s),
+                    per_setting={k: put(v, s) for k, v in spec.per_setting.items()})
+            for s in seeds]
 
 
 def _against_greedy(mission: dict[str, Any], path: str) -> dict[str, Any]:

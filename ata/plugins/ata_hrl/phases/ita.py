@@ -22,8 +22,9 @@ from ata.plugins.ata_hrl.phases.policy import PolicyPhase, scaled, shared_baseli
 
 UPDATE_GROUPS = 4
 """An ITA update takes its gradient in this many parts of whole scenarios: a step's rows
-(about 350,000 scored candidates in setting (a)) in parts whose tensors fit the caches; 1.2 to
-1.3 times faster on the 2-core machine, the same gradient up to float rounding."""
+(about 350,000 scored candidates in setting (a)) in parts whose tensors stay in the caches.
+The same gradient up to float rounding, and faster than one pass (docs/training.md,
+"Training throughput")."""
 
 
 @dataclass
