@@ -174,3 +174,21 @@ def test_the_run_summary_names_weights_without_a_machine_path(cli, tmp_path, mon
     assert r.exit_code == 0, r.output
     assert "weights train/best.pt (read by attention, ctr)" in flat(r.output)
     assert str(tmp_path) not in r.output and str(path) not in r.output
+
+
+def test_a_set_of_several_training_seeds_lists_them(cli, tmp_path, monkeypatch):
+    """Rows of 'NAME seed S' methods (a suite's `seeds`, or a folder of seeds) are one method
+    across its seeds: the manifest lists each such method's seeds; a one-run method has none."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "random.toml").write_text(RANDOM, encoding="utf-8")
+    (tmp_path / "refs.toml").write_text(
+        SUITE.replace('scenarios = 3', 'scenarios = 2') + 'seeds = [2, 0]\n'
+        'set = ["mission.name=\'random-{seed}\'"]\n\n[[method]]\nname = "one"\n'
+        'mission = "random.toml"\n', encoding="utf-8")
+    r = cli("eval", "refs.toml", "-o", "refs", "-e", "serial", "-q")
+    assert r.exit_code == 0, r.output
+    r = cli("publish", "refs", "-o", "pub")
+    assert r.exit_code == 0, r.output
+    m = manifest_of(tmp_path / "pub")
+    assert m["seeds"] == {"random": [0, 2]}
+    assert set(m["methods"]) == {"random seed 0", "random seed 2", "one"}

@@ -56,6 +56,7 @@ from ata.core.components import WORLD_KINDS
 from ata.core.errors import MissionError
 from ata.core.mission import loads_toml
 from ata.results.rows import Results, read_results
+from ata.results.seeds import seed_groups, split_seed
 from ata.runtime.folders import replace_folder, safe_name, shown_path
 from ata.runtime.machine import MODEL_REVISION, PROVENANCE
 from ata.runtime.inputs import read_json_object
@@ -339,7 +340,12 @@ def publish(eval_dir: str | Path, out: str | Path) -> Path:
                 "commit": git.get("commit"), "dirty": git.get("dirty"),
                 "packages": made.get("packages"),
                 "rows": len(rows), "rows_sha256": hashlib.sha256(data).hexdigest(),
-                "machine": meta.get("machine"), "methods": methods}
+                "machine": meta.get("machine"),
+                # each method of several training seeds ('NAME seed S' rows): its seeds
+                "seeds": {label: [split_seed(m)[1] for m in ms]
+                          for label, ms in seed_groups(list(methods)).items()
+                          if split_seed(ms[0])[1] is not None},
+                "methods": methods}
     # whole or not at all: a full disk never leaves half a set, nor spoils the set it replaces
     return replace_folder(out, {ROWS: data,
                                 MANIFEST: (json.dumps(manifest, indent=1) + "\n").encode()})
