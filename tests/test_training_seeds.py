@@ -234,3 +234,27 @@ def test_seeds_start_from_the_same_seed_of_a_folder_of_seeds(seeds_dir, cli, tmp
                  "--set", f"ata_hrl.ita_from={moving}")
     assert result.exit_code == 2 and "seed 1 of" in result.output \
         and "has not finished" in result.output
+
+
+def test_seeds_are_added_to_a_folder_by_the_command_that_trained_it(seeds_dir, cli, tmp_path):
+    """The same command with other seeds adds them (the seeds held are left as they were);
+    another command's folder, or a seed it holds, is refused before any work."""
+    import json
+    import shutil
+    folder = tmp_path / "seeds"
+    shutil.copytree(seeds_dir, folder)
+    before = (folder / "seed-0" / "log.csv").read_text()
+    base = ["train", "--plugins", "ita", "--preset", "smoke", "-e", "serial", "-o", folder,
+            *TINY]
+    result = cli(*base, "--seeds", "1,0")
+    assert result.exit_code == 2 and "holds every seed given already" in result.output
+    result = cli(*base, "--seeds", "3,", "--set", "ata_hrl.lr=0.002")
+    assert result.exit_code == 2 and "another command" in result.output \
+        and "overrides" in result.output
+    assert not (folder / "seed-3").exists()
+    result = cli(*base, "--seeds", "1,3")          # 1 is held: 3 is added
+    assert result.exit_code == 0, result.output
+    assert json.loads((folder / "seeds.json").read_text())["seeds"] == [0, 1, 3]
+    assert (folder / "seed-3" / "trained.json").is_file()
+    assert (folder / "seed-0" / "log.csv").read_text() == before
+    assert "seed 3" in (folder / "suite.toml").read_text()

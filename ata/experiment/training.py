@@ -100,9 +100,9 @@ def train(mission: str | None = None, overrides: list[str] | None = None,
         session = with_weights(source, overrides, extra, session, run_dir)
         on_start(run_dir, None)
         return Trained(run_dir, train_one(session, run_dir, False, bar))
+    info = {"trainer": name, "mission": source, "overrides": overrides, "preset": preset}
     if fd.is_seeds_folder(run_dir):
-        raise MissionError("--out", None, f"{run_dir} holds seeds already: go on with ata "
-                           f"train --resume {run_dir}, or choose another folder")
+        values = more_seeds(run_dir, values, info)
     for s in values:
         folder = run_dir / fd.seed_dir_name(s)
         seeded = per_seed[s] + [f"{name}.seed={s}"]
@@ -110,13 +110,33 @@ def train(mission: str | None = None, overrides: list[str] | None = None,
         folder.mkdir(parents=True, exist_ok=True)
         if not (folder / "log.csv").exists():
             (folder / fd.RESOLVED).write_text(one.mission.to_toml(), encoding="utf-8")
-    fd.write_seeds(run_dir, values, {"trainer": name, "mission": source,
-                                     "overrides": overrides, "preset": preset})
+    every = sorted(set(values) | set(fd.read_seeds(run_dir)["seeds"]
+                                     if fd.is_seeds_folder(run_dir) else []))
+    fd.write_seeds(run_dir, every, info)
     m = session.mission
-    fd.write_suite(run_dir, values, m.settings.name, m.settings.setting, m.settings.uncertainty)
+    fd.write_suite(run_dir, every, m.settings.name, m.settings.setting, m.settings.uncertainty)
     on_start(run_dir, values)
     train_seeds(run_dir, values, executor, workers, address, on_seed)
-    return Trained(run_dir, None, values)
+    return Trained(run_dir, None, every)
+
+
+def more_seeds(folder: Path, values: list[int], info: dict[str, Any]) -> list[int]:
+    """The seeds to add to a folder of seeds trained by the same command (trainer, mission,
+    overrides and preset): those of `values` it does not hold yet (``--seeds 5`` on a folder of
+    seeds 0 and 1 adds 2, 3 and 4). A folder of another command is refused (its seeds are one
+    recipe's), and so are seeds it holds every one of."""
+    data = fd.read_seeds(folder)
+    theirs = {k: data.get(k) for k in info}
+    if theirs != info:
+        differ = ", ".join(k for k in info if theirs[k] != info[k])
+        raise MissionError("--out", None, f"{folder} holds seeds of another command (its "
+                           f"{differ} differ): add seeds with the command that trained them, "
+                           f"go on with ata train --resume {folder}, or choose another folder")
+    new = [s for s in values if s not in data["seeds"]]
+    if not new:
+        raise MissionError("--out", None, f"{folder} holds every seed given already: go on "
+                           f"with ata train --resume {folder}, or give seeds it does not hold")
+    return new
 
 
 def seed_overrides(overrides: list[str], seed: int | None) -> list[str]:
