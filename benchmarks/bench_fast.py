@@ -47,7 +47,7 @@ from ata.experiment.evaluate import DEFAULT_CHUNK  # noqa: E402
 # units of 250 (`ata eval`'s default), pays a fifth as often: the tenfold extrapolation is an
 # upper bound (at 20 a cell it came out several times too high)
 QUICK = {"suite": 50, "single": 10,
-         "recipe": (10, 1, 1), "pois": [130, 260, 520], "poi_batch": 5, "gym_rounds": 2,
+         "recipe": (10, 3, 1), "pois": [130, 260, 520], "poi_batch": 5, "gym_rounds": 2,
          "least_of": 2}
 FULL = {"suite": 500, "single": 20,
         "recipe": (50, 4, 2), "pois": [130, 260, 520, 1040], "poi_batch": 10, "gym_rounds": 5,
