@@ -258,3 +258,21 @@ def test_seeds_are_added_to_a_folder_by_the_command_that_trained_it(seeds_dir, c
     assert (folder / "seed-3" / "trained.json").is_file()
     assert (folder / "seed-0" / "log.csv").read_text() == before
     assert "seed 3" in (folder / "suite.toml").read_text()
+
+
+def test_a_trained_folder_runs_each_cell_at_that_cells_team_and_level(seeds_dir, tmp_path):
+    """A training folder's resolved mission names its team sizes and its level's fatigue
+    variance and event probability; a suite cell of another setting or level runs that
+    setting's team and that level's uncertainty, not the training mission's."""
+    from ata.core.mission import TEAM_SETTINGS, UNCERTAINTY_LEVELS
+    from ata.experiment.evaluate import plan
+    suite = tmp_path / "suite.toml"
+    suite.write_text(f'[suite]\nsettings = ["a", "b"]\nuncertainty = ["low", "high"]\n'
+                     f'[[method]]\nname = "mine"\nmission = "{seeds_dir}"\n')
+    _, jobs = plan([str(suite)], validate=False)
+    assert len(jobs) == 2 * 2 * 2                   # two seeds, two settings, two levels
+    for job in jobs:
+        m = job.session.mission.settings
+        team = TEAM_SETTINGS[job.setting]
+        assert (m.humans, m.robots, m.tasks) == (team.humans, team.robots, team.tasks)
+        assert (m.fatigue_variance, m.event_probability) == UNCERTAINTY_LEVELS[job.level]

@@ -29,7 +29,7 @@ from ata import __version__
 from ata.backend import IN_PROCESS, Backend
 from ata.core.errors import MissionError
 from ata.core.kernel import Simulation
-from ata.core.mission import UNCERTAINTY_LEVELS, Mission
+from ata.core.mission import TEAM_SETTINGS, UNCERTAINTY_LEVELS, Mission
 from ata.experiment import runlog
 from ata.experiment.execute import Done, Plan, ProgressFactory, run_plan
 from ata.experiment.suites import MethodSpec, Suite, load_suite
@@ -173,11 +173,20 @@ def _context(exc: MissionError, source: str, method: str, setting: str | None,
 def _job(suite: Suite, spec: MethodSpec, setting: str | None, level: str | None,
          scenarios: int | None, seed: int | None, backend: Backend = IN_PROCESS) -> Job:
     overrides = list(spec.overrides)
+    # the cell's team setting and level, and what they fix: a setting's team sizes and a
+    # level's fatigue variance and event probability (a resolved mission, such as a training
+    # folder's, names them all, for the setting and level it was trained at)
     if setting is not None:
         overrides += spec.per_setting.get(setting, [])
         overrides.append(f"mission.setting='{setting}'")
+        team = TEAM_SETTINGS.get(setting)
+        overrides += [f"mission.{k}={getattr(team, k)}" for k in ("humans", "robots", "tasks")
+                      if team is not None]
     if level is not None:
         overrides.append(f"mission.uncertainty='{level}'")
+        overrides += [f"mission.{k}={v}" for k, v in
+                      zip(("fatigue_variance", "event_probability"),
+                          UNCERTAINTY_LEVELS.get(level, ()))]
     n = scenarios or suite.scenarios
     if n is None and not suite.own:
         n = DEFAULT_SCENARIOS
