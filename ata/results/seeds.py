@@ -391,7 +391,7 @@ def seed_markdown(res: Results, pairs: list[tuple[str, str]], resamples: int = R
         row, most = [], 0
         for s, lv in cells:
             here = [m for m in ms if res.select(m, s, lv).any()]
-            scores = seed_matrix(res, here, s, lv, "score")[0] if here else np.zeros((0, 0))
+            scores = seed_matrix(res, here, s, lv, column)[0] if here else np.zeros((0, 0))
             if not scores.size:
                 row.append("-")
                 continue
@@ -401,9 +401,10 @@ def seed_markdown(res: Results, pairs: list[tuple[str, str]], resamples: int = R
             row.append(f"{x.mean:.1f} [{x.low:.0f}, {x.high:.0f}]; IQM {x.iqm:.1f}{spread}")
         rows.append([f"{g} ({seeds_text(most)})", *row])
     header = [f"({s}) {lv}" for s, lv in cells]
-    lines = ["Across training seeds: the mean over seeds [95% CI of a two-level bootstrap, seeds "
-             "then scenarios; one seed: over scenarios], the IQM of the seeds' means and their "
-             "range:", "", *_md(["method", *header], rows), ""]
+    what = "" if column == "score" else f" of `{column}`"
+    lines = [f"Across training seeds{what}: the mean over seeds [95% CI of a two-level "
+             "bootstrap, seeds then scenarios; one seed: over scenarios], the IQM of the seeds' "
+             "means and their range:", "", *_md(["method", *header], rows), ""]
     done, rows = set(), []
     for a, b in pairs:
         la, lb = _group_of(groups, a), _group_of(groups, b)
@@ -418,7 +419,6 @@ def seed_markdown(res: Results, pairs: list[tuple[str, str]], resamples: int = R
             row.append("-" if p is None else
                        f"{p.mean:+.1f} [{p.low:+.1f}, {p.high:+.1f}]; P {p.beats:.2f}")
         rows.append(row)
-    what = "" if column == "score" else f" of `{column}`"
     lines += [f"Paired differences{what} across training seeds, A - B [two-level 95% CI]; P: "
               "the probability that a seed of A beats a seed of B:", "",
               *_md(["paired difference", *header], rows), ""]
