@@ -313,24 +313,6 @@ def test_suite_pairs_are_read_and_checked(tmp_path):
         load_suite(path)
 
 
-def test_a_method_of_several_seeds_is_one_method_a_seed_with_its_weights(tmp_path):
-    from ata.experiment.suites import load_suite
-    path = tmp_path / "s.toml"
-    head = '[suite]\nsettings = ["a", "b"]\n[[method]]\nname = "mine"\nmission = "builtin:greedy"\n'
-    path.write_text(head + 'seeds = [3, 0]\nset = ["greedy.weights=\'w{seed}\'"]\n'
-                    '[method.setting.b]\nset = ["greedy.other=\'b{seed}\'"]\n')
-    got = [(m.name, m.overrides, m.per_setting) for m in load_suite(path).methods]
-    assert got == [("mine seed 3", ["greedy.weights='w3'"], {"b": ["greedy.other='b3'"]}),
-                   ("mine seed 0", ["greedy.weights='w0'"], {"b": ["greedy.other='b0'"]})]
-    for seeds, set_, match in (("[1, 1]", "w{seed}", "distinct integers"),
-                               ("[-1]", "w{seed}", "distinct integers"),
-                               ("[]", "w{seed}", "distinct integers"),
-                               ("[1, 2]", "w", "needs {seed}")):
-        path.write_text(head + f'seeds = {seeds}\nset = ["greedy.weights=\'{set_}\'"]\n')
-        with pytest.raises(MissionError, match=match):
-            load_suite(path)
-
-
 # -- 80 columns -----------------------------------------------------------------------------------
 def assert_whole_at_80(output: str, values: list[str]) -> None:
     """No line over 80 characters, nothing cut short, and every value on one line, whole."""
