@@ -39,7 +39,7 @@ def test_readme_commands_match_ci():
     assert "pip install torch==2.13.0" in readme and "torch==2.13.0" in ci
     test_cmd = "python -m pytest -q -n 2"
     assert test_cmd in readme and test_cmd in ci
-    extras = "'.[test,plot,gym,sandbox,tensorboard]'"
+    extras = "'.[test,plot,gym,sandbox,tensorboard,ray]'"
     assert extras in readme and extras in ci
 
 
