@@ -98,8 +98,8 @@ def encode_once(encoder: Encoder, feats: dict[str, np.ndarray],
     `encoder(feats)` itself."""
     E = feats["tasks"].shape[0]
     same = np.ones(max(E - 1, 0), bool)
-    for v in feats.values():
-        if E > 1:
+    if E > 1:
+        for v in feats.values():
             same &= (v[1:] == v[:-1]).reshape(E - 1, -1).all(1)
     if not same.any():
         return encoder(to_tensors(feats, device))

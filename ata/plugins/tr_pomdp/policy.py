@@ -19,7 +19,7 @@ import numpy as np
 from ata import hookimpl
 from ata.core.state import Allocation, DecisionContext
 from ata.model.agents import AgentConfig, AgentInputs, apply_actions, observe
-from ata.plugins.tr_pomdp import agents as dqn
+import ata.plugins.tr_pomdp.agents as dqn
 from ata.plugins.tr_pomdp.settings import Settings as TRPOMDPSettings
 from ata.training import CheckpointError, load_cached, trained_on
 

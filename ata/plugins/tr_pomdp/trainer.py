@@ -29,7 +29,7 @@ import torch
 from ata.core.errors import MissionError
 from ata.core.kernel import Simulation, build_component
 from ata.model.agents import AgentConfig, load_terms
-from ata.plugins.tr_pomdp import agents as dqn
+import ata.plugins.tr_pomdp.agents as dqn
 from ata.plugins.tr_pomdp.policy import KIND, TRPOMDPPolicy, Transition, agents_from_checkpoint
 from ata.plugins.tr_pomdp.settings import Settings
 from ata.training import (VALIDATION_SEED_OFFSET, CheckpointError, Phase, PhaseLoop, TrainRun,
