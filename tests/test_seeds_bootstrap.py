@@ -156,6 +156,7 @@ def test_report_markdown_gives_the_across_seed_tables(cli, tmp_path):
     out = cli("report", folder, "--markdown").output
     assert f"| mine (4 seeds) | {base.mean() + 3.5:.1f} [" in out and "| greedy (1 seed) | " in out
     assert "| mine - greedy | +3.5 [" in out and "; P 1.00 |" in out
+    assert "| mine seed" not in out          # the seeds' rows are read across seeds alone
 
 
 def test_compare_published_prints_the_across_seed_tables(cli, tmp_path, monkeypatch):
@@ -180,3 +181,17 @@ def test_the_across_seed_reference_is_ata_hrl_by_its_seeds(tmp_path):
     assert report.reference == "greedy"          # the per-method tables: no plain ATA-HRL row
     assert report.seeds[1].rows[0][0] == "ATA-HRL - greedy"
     assert summarize(res, "greedy").seeds[1].rows[0][0] == "greedy - ATA-HRL"
+
+
+def test_beside_its_seeds_a_plain_run_keeps_its_own_row_and_a_pair_name_means_the_seeds(tmp_path):
+    base = np.random.default_rng(11).normal(40, 5, 12)
+    res = read_results(write_results(tmp_path / "eval", {
+        "ATA-HRL": base + 20, **{f"ATA-HRL seed {s}": base + 2 + s for s in range(3)},
+        "greedy": base}))
+    lines = "\n".join(sd.seed_markdown(res, [("ATA-HRL", "greedy"),
+                                             ("ATA-HRL (one run)", "greedy")]))
+    assert "| ATA-HRL (one run) (1 seed) | " in lines and "| ATA-HRL (3 seeds) | " in lines
+    # the seeds' mean gap is +3 (2, 3, 4), the plain run's +20: each pair reads its own rows
+    assert "| ATA-HRL - greedy | +3.0 [" in lines
+    assert "| ATA-HRL (one run) - greedy | +20.0 [" in lines
+    assert sd.seed_tables(res, "ATA-HRL")[1].rows[0][0] == "ATA-HRL - ATA-HRL (one run)"

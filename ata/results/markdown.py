@@ -12,7 +12,7 @@ import numpy as np
 from ata.results.report import default_pairs, md_table
 from ata.results.rows import (BOOTSTRAP_SEED, RESAMPLES, Results, bootstrap_ci, nanmean,
                                     paired_values)
-from ata.results.seeds import has_seeds, seed_markdown
+from ata.results.seeds import has_seeds, seed_markdown, split_seed
 from ata.runtime.machine import machine_text
 
 
@@ -25,12 +25,16 @@ def results_markdown(res: Results, pairs: list[tuple[str, str]] | None = None,
     numbers of `summarize` with A as the reference), and every method's mean time per scenario
     (`made_on`: the machines and workers that ran it, one line each). The paired differences
     are of `column` (default the drawn score; ``expected_score``: the expected points). Pairs
-    naming a method the results lack are left out; `pairs` defaults to `default_pairs`."""
+    naming a method the results lack are left out; `pairs` defaults to `default_pairs`. A
+    training seed's rows (a method ``NAME seed S``) are in the tables across seeds that follow
+    (`seeds.seed_markdown`), not in these."""
     groups = [(s, lv) for s in res.settings for lv in res.levels]
     columns = [f"({s}) {lv}" for s, lv in groups]
     c = res.columns
+    # a training seed's rows (`NAME seed S`) are read across seeds, in the tables after these
+    methods = [m for m in res.methods if split_seed(m)[1] is None]
     rows = []
-    for m in res.methods:
+    for m in methods:
         row = [res.label(m)]
         for s, lv in groups:
             sel = res.select(m, s, lv)
@@ -45,7 +49,7 @@ def results_markdown(res: Results, pairs: list[tuple[str, str]] | None = None,
              *md_table(["method", *columns], rows), ""]
     rows = []
     for a, b in default_pairs(res) if pairs is None else pairs:
-        if a not in res.methods or b not in res.methods:
+        if a not in methods or b not in methods:
             continue
         row = [f"{res.label(a)} - {res.label(b)}"]
         for s, lv in groups:
@@ -66,7 +70,7 @@ def results_markdown(res: Results, pairs: list[tuple[str, str]] | None = None,
                                      resamples, column)][:-1]
     if "wall_s" in c:
         rows = [[res.label(m)] + [fmt_time(c["wall_s"][res.select(m, s, lv)]) for s, lv in groups]
-                for m in res.methods]
+                for m in methods]
         lines += ["", "Time per scenario, seconds (the mean of `wall_s`: each work unit's wall "
                   "time shared among its scenarios; a method's first unit pays for its imports "
                   "and weights)" + (", made on " + "; ".join(made_on) if made_on else "") + ":",

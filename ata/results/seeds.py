@@ -293,10 +293,12 @@ def pair_row(p: PairAcross) -> list[str]:
 
 
 def _group_of(groups: dict[str, list[str]], method: str | None) -> str | None:
-    for label, members in groups.items():
-        if method in members or method == label:
-            return label
-    return None
+    """The group a pair's name means: the label of a method's seeds where one is so named (beside
+    ``X seed S``, ``X`` means X's seeds; its plain run is ``X (one run)``), else the group
+    holding that method."""
+    if method in groups:
+        return method
+    return next((label for label, members in groups.items() if method in members), None)
 
 
 def seed_tables(res: Results, reference: str | None = None, resamples: int = RESAMPLES,
