@@ -195,3 +195,24 @@ def test_beside_its_seeds_a_plain_run_keeps_its_own_row_and_a_pair_name_means_th
     assert "| ATA-HRL - greedy | +3.0 [" in lines
     assert "| ATA-HRL (one run) - greedy | +20.0 [" in lines
     assert sd.seed_tables(res, "ATA-HRL")[1].rows[0][0] == "ATA-HRL - ATA-HRL (one run)"
+
+
+def test_the_figures_draw_the_plain_methods_and_leave_the_seeds_to_the_tables(tmp_path,
+                                                                              monkeypatch):
+    from ata.results import report as rp
+    base = np.random.default_rng(12).normal(40, 5, 10)
+    res = read_results(write_results(tmp_path / "eval", {
+        "ATA-HRL": base + 9, **{f"ATA-HRL seed {s}": base + s for s in range(2)},
+        "w/o.AUX": base + 4, "greedy": base}))
+    drawn = {}
+
+    def keep(fig, out, stem, **kw):
+        drawn[stem] = [t.get_text() for ax in fig.axes for t in
+                       (ax.get_legend().get_texts() if ax.get_legend() else ax.get_yticklabels())]
+        return []
+    monkeypatch.setattr(rp, "save_figure", keep)
+    report = rp.summarize(res, "ATA-HRL")
+    rp.figures(report, tmp_path, rp.paired_differences(res, "greedy", 200))
+    assert drawn["fig_setting_a"] == ["ATA-HRL", "w/o.AUX", "greedy"]
+    assert drawn["fig_ablations"] == ["ATA-HRL", "w/o.AUX"]
+    assert "ATA-HRL seed 0" not in drawn["fig_paired"] and "ATA-HRL" in drawn["fig_paired"]

@@ -25,7 +25,7 @@ from ata.runtime import extras
 from ata.runtime.folders import prepare_out_dir, writing
 from ata.results.rows import (BOOTSTRAP_SEED, RESAMPLES, Results, beat_probability,
                                     bootstrap_ci, nanmean, paired_values, read_results)
-from ata.results.seeds import SeedTable, has_seeds, seed_tables
+from ata.results.seeds import SeedTable, has_seeds, seed_tables, split_seed
 
 DEFAULT_REFERENCE = "ATA-HRL"
 PAIRED_REFERENCE = "greedy"
@@ -296,14 +296,17 @@ def figures(report: Report, out_dir: str | Path, paired: list[Paired] = ()) -> l
     """fig_setting_<s>.{png,svg} per setting (bars of the mean score with CI error bars, per
     method, grouped by level) and fig_ablations.{png,svg} (the reference and the w/o methods
     across the levels), after the paper's Fig. 4; with `paired`, fig_paired.{png,svg}
-    (`paired_figure`). Figures without data are skipped."""
+    (`paired_figure`). Figures without data are skipped. A training seed's rows (``NAME seed
+    S``) are left to the tables across seeds: the figures draw the other methods."""
     plt = pyplot()
     out = Path(out_dir)
     res = report.results
+    plain = [m for m in res.methods if split_seed(m)[1] is None]
+    paired = [p for p in paired if p.method in plain]
     written: list[Path] = []
     for setting in res.settings:
         levels = [lv for lv in res.levels if report.table(setting, lv)]
-        methods = [m for m in res.methods
+        methods = [m for m in plain
                    if any(c.method == m and c.setting == setting for c in report.cells)]
         if not levels or not methods:
             continue
@@ -328,7 +331,7 @@ def figures(report: Report, out_dir: str | Path, paired: list[Paired] = ()) -> l
         written += save_figure(fig, out, f"fig_setting_{setting}")
         plt.close(fig)
 
-    ablations = [m for m in res.methods if m.startswith(ABLATION_PREFIX)]
+    ablations = [m for m in plain if m.startswith(ABLATION_PREFIX)]
     settings = [s for s in res.settings
                 if any(c.setting == s and c.method in ablations for c in report.cells)]
     if ablations and settings:
@@ -370,6 +373,7 @@ def paired_figure(plt, res: Results, paired: list[Paired]):
     in results order and colours (those of fig_setting_<s>), the value of each bar printed at
     the panel's right edge (bold where the CI excludes 0)."""
     ref = paired[0].reference
+    plain = [m for m in res.methods if split_seed(m)[1] is None]     # fig_setting's colours
     cells = {(p.setting, p.level, p.method): p for p in paired}
     settings = [s for s in res.settings if any(p.setting == s for p in paired)]
     labels, rows = [], []                      # rows: (level, method or None for a heading)
@@ -392,7 +396,7 @@ def paired_figure(plt, res: Results, paired: list[Paired]):
             if cell is None:
                 values.append("")
                 continue
-            ax.barh(k, cell.mean, 0.7, color=colours[res.methods.index(method) % len(colours)],
+            ax.barh(k, cell.mean, 0.7, color=colours[plain.index(method) % len(colours)],
                     xerr=[[cell.mean - cell.low], [cell.high - cell.mean]], capsize=2,
                     error_kw={"elinewidth": 0.8, "capthick": 0.8})
             values.append(f"{cell.mean:+.1f} [{cell.low:+.1f}, {cell.high:+.1f}]")
