@@ -13,7 +13,14 @@ CELLS = sorted({c for entry in MANIFEST["methods"].values() for c in entry["cell
 
 def test_the_paper_set_ships_every_method_and_cell_of_the_suite():
     assert (PUBLISHED / "paper" / "manifest.json").is_file()
-    assert len(METHODS) == 11 and len(CELLS) == 6
+    plain = [m for m in METHODS if " seed " not in m]
+    assert len(plain) == 11 and len(CELLS) == 6
+    # every learned method from several training seeds, each seed's rows under its own name
+    seeds = MANIFEST["seeds"]
+    assert all(len(seeds[m]) >= 5 for m in ("ATA-HRL", "w/o.AUX", "w/o.C"))
+    assert all(len(seeds[m]) >= 3 for m in ("TR-POMDP", "AtRL-TR"))
+    assert sorted(METHODS) == sorted(plain + [f"{m} seed {s}" for m, ss in seeds.items()
+                                              for s in ss])
     for method, entry in MANIFEST["methods"].items():
         assert sorted(entry["cells"]) == CELLS, method
         for cell, info in entry["cells"].items():
