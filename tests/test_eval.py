@@ -176,7 +176,10 @@ def test_every_method_of_the_paper_suite_gives_the_same_rows_on_any_executor_and
     setting (a) at high uncertainty, gives the same rows (but for their times) serially in one
     unit of 3 scenarios and on 2 worker processes in units of 2 and 1."""
     _, jobs = ev.plan([str(PAPER_SUITE)], scenarios=3, settings=["a"], levels=["high"])
-    assert len(jobs) == 11
+    assert len(jobs) == 32          # 11 methods and 21 training seeds
+    # a training seed runs the code of its method: one seed each is enough here
+    jobs = [j for j in jobs if " seed " not in j.method or j.method.endswith(" seed 0")]
+    assert len(jobs) == 16
 
     def rows(executor, chunk):
         with executor:
@@ -186,7 +189,7 @@ def test_every_method_of_the_paper_suite_gives_the_same_rows_on_any_executor_and
         return [{k: repr(v) for k, v in r.items() if k not in DROPPED} for r in got]
 
     serial = rows(SerialExecutor(), 3)
-    assert len(serial) == 33 and len({r["score"] for r in serial}) > 20   # rows that differ
+    assert len(serial) == 48 and len({r["score"] for r in serial}) > 30   # rows that differ
     assert rows(ProcessExecutor(2), 2) == serial
 
 

@@ -184,7 +184,7 @@ class ReadsTheFatigueCurves:
     among the humans in proportion to when each one's fatigue sets in: curves no observation
     shows at t = 0. (A split, not one human, so that redrawing the curves moves some POI almost
     surely: the human whose fatigue sets in last stays the same one redraw in two with two
-    humans, and six scenarios let that pass the check about once in a hundred runs.)"""
+    humans, and six scenarios let that pass the check in about one run in two hundred.)"""
 
     def __init__(self, settings, mission):
         pass

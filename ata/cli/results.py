@@ -196,20 +196,29 @@ def _against_published(folders: List[Path], column: Optional[List[str]], base: O
                                  columns, methods)
     for name in [] if means else bases:
         if compact:
+            # a published training seed's rows (NAME seed S) are in the tables across seeds
+            plain = [m for m in theirs.methods if seeds.split_seed(m)[1] is None or m == name]
             tables += cmp.leaderboards(mine, theirs, columns, base=name, methods=methods,
-                                       tags=("A", "published"), resamples=resamples)
+                                       tags=("A", "published"), b_methods=plain,
+                                       resamples=resamples)
         else:
             tables += cmp.compare(mine, theirs, columns, base=name, methods=methods,
                                   power=power, resamples=resamples)
     # across training seeds (ata.results.seeds): each method's seeds grouped, A - B with its
-    # two-level interval and P(a seed of A beats a seed of B); by default only where a method
-    # has several seeds
-    if not (power or means) and (full or seeds.has_seeds(mine) or seeds.has_seeds(theirs)):
+    # two-level interval and P(a seed of A beats a seed of B); by default only where A has a
+    # method of several seeds (the published set's seeds alone: with --full)
+    across = not (power or means) and (full or seeds.has_seeds(mine))
+    if across:
         tables += seeds.published_tables(mine, theirs, bases if base else list(theirs.methods),
                                          resamples, columns[0], methods)
     if not markdown:
         note(f"none rerun: paired with the published rows of "
              f"{published.describe(where, manifest)}", wrap=True)
+        if not across and not (power or means) and seeds.has_seeds(theirs):
+            note("the published set holds training seeds (NAME seed S) of "
+                 + ", ".join(g for g, ms in seeds.seed_groups(theirs.methods).items()
+                             if len(ms) > 1)
+                 + ": --full adds each method against them across seeds", wrap=True)
     _print_tables(tables, markdown)
 
 

@@ -303,15 +303,18 @@ class Entry:
 
 
 def board_entries(a: Results, b: Results | None, methods: list[str] | None = None,
-                  tags: tuple[str, str] = ("A", "B")) -> list[Entry]:
-    """The methods a leaderboard shows: A's (those of `methods`, if given), then B's; a name
-    found in both folders is tagged with its folder's tag (``random (A)``)."""
+                  tags: tuple[str, str] = ("A", "B"),
+                  b_methods: list[str] | None = None) -> list[Entry]:
+    """The methods a leaderboard shows: A's (those of `methods`, if given), then B's (those of
+    `b_methods`, if given); a name found in both folders is tagged with its folder's tag
+    (``random (A)``)."""
     for m in methods or []:
         if m not in a.methods:
             raise MissionError("--methods", None, f"no method {m!r} in the results; methods: "
                                + ", ".join(a.methods))
     mine = [m for m in a.methods if methods is None or m in methods]
-    theirs = list(b.methods) if b is not None else []
+    theirs = [m for m in b.methods if b_methods is None or m in b_methods] \
+        if b is not None else []
     both = set(mine) & set(theirs)
 
     def label(res: Results, m: str, tag: str) -> str:
@@ -367,10 +370,10 @@ scores more than the base, ties counting half."""
 
 def leaderboards(a: Results, b: Results | None, columns: list[str], *,
                  base: str | None = None, methods: list[str] | None = None,
-                 tags: tuple[str, str] = ("A", "B"),
+                 tags: tuple[str, str] = ("A", "B"), b_methods: list[str] | None = None,
                  resamples: int = RESAMPLES, seed: int = BOOTSTRAP_SEED) -> list[Table]:
     """`ata compare`'s default: a table per (setting, level) and column: every method of A (of
-    `methods`, if given) and of B with its mean [95% CI], its paired difference method - base
+    `methods`, if given) and of B (of `b_methods`, if given) with its mean [95% CI], its paired difference method - base
     [95% CI] and P(beats base) (`board_base` chooses the base), on the scenarios that the base
     and every method of A ran there (a row with fewer says so in a column `n`). Two folders of
     one cell each are paired across their cells."""
@@ -383,7 +386,7 @@ def leaderboards(a: Results, b: Results | None, columns: list[str], *,
         raise MissionError("", None, "this folder holds one method: give a second folder "
                            "to pair it with (ata compare RUN OTHER_RUN), or pair it with "
                            "the published rows (ata compare RUN published)")
-    entries = board_entries(a, b, methods, tags)
+    entries = board_entries(a, b, methods, tags, b_methods)
     ref, entries = board_base(a, b, base, entries)
     across = b is not None and len(a.cells()) == 1 and len(b.cells()) == 1
     out: list[Table] = []
