@@ -129,6 +129,15 @@ def test_filters(cli, suite, tmp_path):
     assert len(rows) == 2
 
 
+def test_methods_names_a_method_whose_name_holds_commas(suite):
+    text = suite.read_text().replace('name = "random"', 'name = "random, seed 2, x"')
+    suite.write_text(text)
+    _, jobs = ev.plan([str(suite)], methods=["greedy", "random", "seed 2", "x"], validate=False)
+    assert {j.method for j in jobs} == {"greedy", "random, seed 2, x"}
+    with pytest.raises(MissionError, match="unknown method 'random'"):
+        ev.plan([str(suite)], methods=["random", "seed 2"], validate=False)
+
+
 # -- executors ----------------------------------------------------------------------------------
 def _rows(executor, suite, chunk_size, scenarios=5):
     _, jobs = ev.plan([str(suite)], scenarios=scenarios)

@@ -104,6 +104,23 @@ def _level_order(level: str) -> int:
     return order.index(level) if level in order else len(order)
 
 
+def _rejoin(parts: list[str], names: dict[str, str]) -> list[str]:
+    """`--methods` split at its commas, with the parts of a method name that holds commas
+    (``ATA-HRL, full recipe, seed 12345``) joined again; other parts as they were."""
+    out, i = [], 0
+    while i < len(parts):
+        j = next((j for j in range(len(parts), i + 1, -1)
+                  for sep in (", ", ",") if sep.join(parts[i:j]) in names), None)
+        if j is None:
+            out.append(parts[i])
+            i += 1
+        else:
+            out.append(next(s.join(parts[i:j]) for s in (", ", ",")
+                            if s.join(parts[i:j]) in names))
+            i = j
+    return out
+
+
 def plan(paths: list[str], *, scenarios: int | None = None, seed: int | None = None,
          methods: list[str] | None = None, settings: list[str] | None = None,
          levels: list[str] | None = None, validate: bool = True,
@@ -122,6 +139,7 @@ def plan(paths: list[str], *, scenarios: int | None = None, seed: int | None = N
                                    file=suite.path)
             names[m.name] = suite.path
     if methods:
+        methods = _rejoin(methods, names)
         unknown = [m for m in methods if m not in names]
         if unknown:
             raise MissionError("--methods", None, f"unknown method {unknown[0]!r}; the suites "
