@@ -190,7 +190,7 @@ def test_beside_its_seeds_a_plain_run_keeps_its_own_row_and_a_pair_name_means_th
         "greedy": base}))
     lines = "\n".join(sd.seed_markdown(res, [("ATA-HRL", "greedy"),
                                              ("ATA-HRL (one run)", "greedy")]))
-    assert "| ATA-HRL (one run) (1 seed) | " in lines and "| ATA-HRL (3 seeds) | " in lines
+    assert "| ATA-HRL (one run) | " in lines and "| ATA-HRL (3 seeds) | " in lines
     # the seeds' mean gap is +3 (2, 3, 4), the plain run's +20: each pair reads its own rows
     assert "| ATA-HRL - greedy | +3.0 [" in lines
     assert "| ATA-HRL (one run) - greedy | +20.0 [" in lines

@@ -401,7 +401,8 @@ def seed_markdown(res: Results, pairs: list[tuple[str, str]], resamples: int = R
             most = max(most, x.seeds)
             spread = f"; {x.lowest:.1f} to {x.highest:.1f}" if x.seeds > 1 else ""
             row.append(f"{x.mean:.1f} [{x.low:.0f}, {x.high:.0f}]; IQM {x.iqm:.1f}{spread}")
-        rows.append([f"{g} ({seeds_text(most)})", *row])
+        # a plain run beside seeds is labelled "X (one run)" already
+        rows.append([g if g.endswith("(one run)") else f"{g} ({seeds_text(most)})", *row])
     header = [f"({s}) {lv}" for s, lv in cells]
     what = "" if column == "score" else f" of `{column}`"
     lines = [f"Across training seeds{what}: the mean over seeds [95% CI of a two-level "
