@@ -197,7 +197,7 @@ def _against_published(folders: List[Path], column: Optional[List[str]], base: O
     for name in [] if means else bases:
         if compact:
             # a published training seed's rows (NAME seed S) are in the tables across seeds
-            plain = [m for m in theirs.methods if seeds.split_seed(m)[1] is None or m == name]
+            plain = seeds.plain_methods(theirs.methods) + [name]
             tables += cmp.leaderboards(mine, theirs, columns, base=name, methods=methods,
                                        tags=("A", "published"), b_methods=plain,
                                        resamples=resamples)

@@ -109,15 +109,11 @@ def _rejoin(parts: list[str], names: dict[str, str]) -> list[str]:
     (``ATA-HRL, full recipe, seed 12345``) joined again; other parts as they were."""
     out, i = [], 0
     while i < len(parts):
-        j = next((j for j in range(len(parts), i + 1, -1)
-                  for sep in (", ", ",") if sep.join(parts[i:j]) in names), None)
-        if j is None:
-            out.append(parts[i])
-            i += 1
-        else:
-            out.append(next(s.join(parts[i:j]) for s in (", ", ",")
-                            if s.join(parts[i:j]) in names))
-            i = j
+        # the longest run of parts from i that joins into a name, else part i alone
+        i, name = next(((j, joined) for j in range(len(parts), i + 1, -1)
+                        for joined in (", ".join(parts[i:j]), ",".join(parts[i:j]))
+                        if joined in names), (i + 1, parts[i]))
+        out.append(name)
     return out
 
 

@@ -12,7 +12,7 @@ import numpy as np
 from ata.results.report import default_pairs, md_table
 from ata.results.rows import (BOOTSTRAP_SEED, RESAMPLES, Results, bootstrap_ci, nanmean,
                                     paired_values)
-from ata.results.seeds import has_seeds, seed_markdown, split_seed
+from ata.results.seeds import has_seeds, plain_methods, seed_markdown
 from ata.runtime.machine import machine_text
 
 
@@ -32,7 +32,7 @@ def results_markdown(res: Results, pairs: list[tuple[str, str]] | None = None,
     columns = [f"({s}) {lv}" for s, lv in groups]
     c = res.columns
     # a training seed's rows (`NAME seed S`) are read across seeds, in the tables after these
-    methods = [m for m in res.methods if split_seed(m)[1] is None]
+    methods = plain_methods(res.methods)
     rows = []
     for m in methods:
         row = [res.label(m)]

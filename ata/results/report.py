@@ -25,7 +25,7 @@ from ata.runtime import extras
 from ata.runtime.folders import prepare_out_dir, writing
 from ata.results.rows import (BOOTSTRAP_SEED, RESAMPLES, Results, beat_probability,
                                     bootstrap_ci, nanmean, paired_values, read_results)
-from ata.results.seeds import SeedTable, has_seeds, seed_tables, split_seed
+from ata.results.seeds import SeedTable, has_seeds, plain_methods, seed_tables
 
 DEFAULT_REFERENCE = "ATA-HRL"
 PAIRED_REFERENCE = "greedy"
@@ -301,7 +301,7 @@ def figures(report: Report, out_dir: str | Path, paired: list[Paired] = ()) -> l
     plt = pyplot()
     out = Path(out_dir)
     res = report.results
-    plain = [m for m in res.methods if split_seed(m)[1] is None]
+    plain = plain_methods(res.methods)
     paired = [p for p in paired if p.method in plain]
     written: list[Path] = []
     for setting in res.settings:
@@ -373,7 +373,7 @@ def paired_figure(plt, res: Results, paired: list[Paired]):
     in results order and colours (those of fig_setting_<s>), the value of each bar printed at
     the panel's right edge (bold where the CI excludes 0)."""
     ref = paired[0].reference
-    plain = [m for m in res.methods if split_seed(m)[1] is None]     # fig_setting's colours
+    plain = plain_methods(res.methods)     # fig_setting's colours
     cells = {(p.setting, p.level, p.method): p for p in paired}
     settings = [s for s in res.settings if any(p.setting == s for p in paired)]
     labels, rows = [], []                      # rows: (level, method or None for a heading)

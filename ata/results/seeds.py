@@ -55,6 +55,11 @@ def split_seed(method: str) -> tuple[str, int | None]:
     return (m["label"], int(m["seed"])) if m else (method, None)
 
 
+def plain_methods(methods: list[str]) -> list[str]:
+    """The methods that are not one training seed of a method (``NAME seed S``), in order."""
+    return [m for m in methods if split_seed(m)[1] is None]
+
+
 def seed_groups(methods: list[str]) -> dict[str, list[str]]:
     """Each label's methods (its seeds' names), labels in the order first met, seeds in order.
     A method ``X seed S`` groups under X; a plain ``X`` beside them stays apart (as ``X``): it
