@@ -10,6 +10,7 @@ import json
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from ata.core.errors import MissionError
@@ -149,3 +150,86 @@ def test_the_command_builds_a_page_and_refuses_a_folder_that_is_not_one(tiny, tm
     assert r.exit_code == 2 and "no method 'nobody'" in r.output
     r = cli("site", str(tiny / "eval"), "-o", tmp_path / "x", "--verify", "1")
     assert r.exit_code == 2 and "no published set" in r.output
+
+
+SEEDED = """[suite]
+settings = ["a"]
+uncertainty = ["high"]
+scenarios = 4
+seed = 0
+
+[[method]]
+name = "greedy"
+mission = "builtin:greedy"
+
+[[method]]
+name = "mine"
+mission = "builtin:greedy"
+set = ["components.condition=always"]
+
+[[method]]
+name = "mine seed 0"
+mission = "builtin:greedy"
+set = ["components.condition=never"]
+
+[[method]]
+name = "mine seed 1"
+mission = "builtin:greedy"
+set = ["components.condition=always"]
+
+[[method]]
+name = "mine seed 2"
+mission = "builtin:greedy"
+set = ["components.reconstructors=['filter']"]
+"""
+
+
+@pytest.fixture(scope="module")
+def seeded(tmp_path_factory):
+    """An evaluation with three 'training seeds' of a method beside its plain run."""
+    from ata.experiment.evaluate import evaluate_suites
+    root = tmp_path_factory.mktemp("seeded")
+    (root / "suite.toml").write_text(SEEDED)
+    evaluate_suites([str(root / "suite.toml")], root / "eval", executor="serial")
+    return root / "eval"
+
+
+def test_a_methods_seeds_are_one_leaderboard_row_across_seeds_and_a_page_of_each_seed(
+        seeded, tmp_path):
+    from ata.results.rows import beat_probability
+    from ata.results.seeds import across_seeds, pair_across, seed_matrix
+    site = build_site([str(seeded)], tmp_path / "site", draw_figures=False)
+    seeds = ["mine seed 0", "mine seed 1", "mine seed 2"]
+    [row] = site.board.seeded
+    assert (row.label, row.methods, row.seeds) == ("mine (3 seeds)", seeds, [0, 1, 2])
+    res = load_source(seeded).results
+    mine, base = seed_matrix(res, seeds, "a", "high", also=[(res, ["greedy"])])
+    assert mine.shape == (3, 4) and len(set(map(tuple, mine))) > 1      # the seeds differ
+    assert row.stats == across_seeds(mine, "mine (3 seeds)", "a", "high")
+    assert row.pair == pair_across(mine, base, "mine (3 seeds)", "greedy", "a", "high")
+    # P(beats greedy) is each seed's share of scenarios where it scores more, over the seeds
+    assert row.beats == pytest.approx(np.mean([beat_probability(m, base[0]) for m in mine]))
+    plain = seed_matrix(res, ["mine"], "a", "high")[0]
+    assert row.default == pair_across(mine, plain, "mine (3 seeds)", "mine", "a", "high")
+    index = (site.out / "index.html").read_text()
+    board = index[index.index('id="table-a-high"'):]
+    linked = re.findall(r'<a href="([^"]+)">([^<]+)</a>', board[:board.index("</table>")])
+    # the plain runs and the seeds as one row: no seed's own row
+    assert sorted(name for _, name in linked) == ["greedy", "mine", "mine (3 seeds)"]
+    assert board.count('<tr class="seeds">') == 1
+    page = dict((name, href) for href, name in linked)["mine (3 seeds)"]
+    text = (site.out / page).read_text()
+    for seed in seeds:           # each seed's row, linked to its own page
+        assert re.search(rf'<a href="(method-[^"]+)">{seed}</a>', text)
+    for href in re.findall(r'href="([^"#]+)"', text):
+        assert (site.out / href).is_file(), href
+    [across] = json.loads((site.out / "site.json").read_text())["across_seeds"]
+    assert (across["seeds"], across["scenarios"], across["seed_methods"]) == (3, 4, seeds)
+    assert across["mean"] == pytest.approx(mine.mean())
+    assert across["diff_to_base"][0] == pytest.approx(mine.mean() - base.mean())
+
+
+def test_a_set_without_seeds_has_no_row_across_seeds(tiny, tmp_path):
+    site = build_site([str(tiny / "eval")], tmp_path / "site", draw_figures=False)
+    assert site.board.seeded == [] and not [f for f in site.files if f.startswith("seeds-")]
+    assert json.loads((site.out / "site.json").read_text())["across_seeds"] == []

@@ -85,7 +85,10 @@ def test_every_table_has_its_rows_and_every_figure_loads(page):
     assert len(tables) == 1 + len(groups)                 # the sets, then a board per cell
     for table, (setting, level) in zip(tables[1:], groups):
         rows = table.find_elements("css selector", "tbody tr")
-        assert len(rows) == len(site.board.table(setting, level)) >= 2, (setting, level)
+        # every method's row, a method's seeds as one row across them
+        shown = [e for e in site.board.table(setting, level) if not e.seed_of]
+        assert len(rows) == len(shown) + len(site.board.seed_table(setting, level)) >= 2, \
+            (setting, level)
     assert len(tables[0].find_elements("css selector", "tbody tr")) == 2
     images = driver.find_elements("css selector", "figure img")
     assert len(images) == len([f for f in site.files if f.endswith(".png")]) >= 3
@@ -138,4 +141,20 @@ def test_a_method_page_opens_from_its_row_and_shows_its_provenance(page):
     for word in ("code digest", "model revision", "trainer seed 12345", "ata run mission.toml",
                  "decisions isolated", "seed"):
         assert word in text, word
+    assert _errors(driver) == []
+
+
+def test_a_methods_row_across_seeds_opens_the_page_of_each_seed(page):
+    driver, site = page
+    driver.get((site.out / "index.html").resolve().as_uri())
+    links = driver.find_elements("link text", "ATA-HRL (5 seeds)")
+    assert len(links) == len(site.board.groups())         # one row in every board
+    links[0].click()
+    text = driver.find_element("tag name", "body").text
+    for word in ("Across seeds", "IQM", "P(a seed beats greedy)", "ATA-HRL (one run)"):
+        assert word in text, word
+    seeds = driver.find_elements("css selector", "#table-each-seed tbody tr")
+    assert len(seeds) == 5 * len(site.board.groups())
+    driver.find_element("link text", "ATA-HRL seed 4").click()
+    assert "code digest" in driver.find_element("tag name", "body").text
     assert _errors(driver) == []

@@ -24,6 +24,7 @@ th[aria-sort="descending"]::after { content: " \\25BC"; font-size: 10px; }
 .tier.reproduced { background: #d7f2dd; color: #17612b; }
 .tier.reported { background: #eceff3; color: #4a5160; }
 .ahead { font-weight: 600; }
+tr.seeds td { background: #f6f8fc; }
 .note { color: #5b6373; font-size: 13px; }
 figure { margin: 16px 0 28px; } figure img { max-width: 100%; border: 1px solid #e6e9ef; }
 figcaption { font-size: 13px; color: #4a5160; }

@@ -5,13 +5,15 @@ same scenarios with its interval, P(method beats base), time per scenario and tr
 The statistics are `ata report`'s (`ata.results.rows`: the percentile bootstrap, 2000 resamples,
 its fixed seed; ties count half). A method of one set is paired with the base of another only
 where both cells ran in the same model revision (the world's code and settings), on the
-scenarios both ran.
+scenarios both ran. A method's training seeds (``NAME seed S``) are each an entry too (their
+pages, site.json), and together one row across seeds (`ata.site.seeds`), which is the row the
+leaderboards show.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -20,6 +22,7 @@ from ata.published.sets import cell_name
 from ata.results.report import Cell, Paired
 from ata.results.rows import (RESAMPLES, Results, beat_probability, bootstrap_ci, level_key,
                               nanmean, paired)
+from ata.site.seeds import SeedEntry, build_seed_entries, seeded_groups
 from ata.site.sources import Source
 
 DEFAULT_BASE = "greedy"
@@ -50,6 +53,7 @@ class Entry:
     paired_n: int = 0
     beats: float = NAN                                    # P(method beats base)
     unpaired: str = ""                                    # why no pairs, where none
+    seed_of: str = ""             # the method whose training seed this is (NAME seed S), if any
 
     @property
     def cell(self) -> str:
@@ -62,9 +66,14 @@ class Board:
     entries: list[Entry]
     settings: list[str]
     levels: list[str]
+    seeded: list[SeedEntry] = field(default_factory=list)
+    """Each method with training seeds as one row per cell (`ata.site.seeds`)."""
 
     def table(self, setting: str, level: str) -> list[Entry]:
         return [e for e in self.entries if e.setting == setting and e.level == level]
+
+    def seed_table(self, setting: str, level: str) -> list[SeedEntry]:
+        return [e for e in self.seeded if e.setting == setting and e.level == level]
 
     def groups(self) -> list[tuple[str, str]]:
         return [(s, lv) for s in self.settings for lv in self.levels if self.table(s, lv)]
@@ -100,6 +109,7 @@ def build_board(sources: list[Source], base: str | None = None,
     entries = []
     settings = sorted({s for src in sources for s in src.results.settings})
     levels = sorted({lv for src in sources for lv in src.results.levels}, key=level_key)
+    seed_of = [{m: g for g, ms in seeded_groups(src).items() for m in ms} for src in sources]
     for setting in settings:
         for level in levels:
             cell = cell_name(setting, level)
@@ -113,6 +123,7 @@ def build_board(sources: list[Source], base: str | None = None,
                         continue
                     entry = _entry(src, method, names[(k, method)], setting, level, sel,
                                    resamples)
+                    entry.seed_of = seed_of[k].get(method, "")
                     info = src.methods.get(method)
                     model = info.cells.get(cell, {}).get("model") if info else None
                     if (k, method) == (bk, bm):
@@ -130,7 +141,8 @@ def build_board(sources: list[Source], base: str | None = None,
                         else:
                             entry.unpaired = "no scenario in common with the base"
                     entries.append(entry)
-    return Board(names[(bk, bm)], entries, settings, levels)
+    return Board(names[(bk, bm)], entries, settings, levels,
+                 build_seed_entries(sources, (bk, bm), settings, levels, resamples))
 
 
 def _entry(src: Source, method: str, label: str, setting: str, level: str, sel: np.ndarray,

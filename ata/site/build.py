@@ -2,8 +2,9 @@
 folder that any web server can host (no network at view time).
 
 The folder holds index.html (the sets, a leaderboard per setting and level, `ata report`'s
-figures), a page per method of each set, site.css and site.js, the figures as PNG,
-site.json (the leaderboards' numbers) and verified.json (the reruns that make a set
+figures), a page per method of each set and one per method with training seeds (the seeds as
+one, then each seed), site.css and site.js, the figures as PNG, site.json (the leaderboards'
+numbers, and the rows across seeds) and verified.json (the reruns that make a set
 "reproduced", `ata.site.verify`). The same sets, code and records give the same HTML and JSON
 files byte for byte: nothing in them holds a date or a machine's path.
 """
@@ -25,7 +26,8 @@ from ata.results.report import (ABLATION_PREFIX, DEFAULT_REFERENCE, Report, figu
 from ata.results.rows import RESAMPLES
 from ata.runtime.folders import prepare_out_dir, refuse_other_kind, writing
 from ata.site.assets import CSS, JS
-from ata.site.pages import Tier, index_html, method_html, page_name
+from ata.site.pages import (Tier, index_html, method_html, page_name, seeds_html,
+                            seeds_page_name)
 from ata.site.board import Board, build_board, merged, report_cells, report_paired
 from ata.site.sources import Source, load_source
 from ata.site.verify import read_records, tier, verify
@@ -95,6 +97,11 @@ def build_site(specs: list[str], out: str | Path, *, base: str | None = None,
             if entries:
                 files[page_name(src, name)] = method_html(
                     src, info, entries[0].label, entries, tiers[k], board.base).encode()
+        for group in dict.fromkeys(g.group for g in board.seeded if g.source is src):
+            rows = [g for g in board.seeded if g.source is src and g.group == group]
+            members = [e for e in board.entries if e.source is src and e.seed_of == group]
+            files[seeds_page_name(src, group)] = seeds_html(src, group, rows, members, tiers[k],
+                                                            board.base).encode()
     files["site.css"] = CSS.encode()
     files["site.js"] = JS.encode()
     # every record of these sets' rows (once each), whether it made its set reproduced or not:
@@ -161,7 +168,24 @@ def site_data(sources: list[Source], board: Board, tiers: dict[int, Tier],
             "unpaired": e.unpaired or None,
             "p_beats_base": _number(e.beats), "time_per_scenario_s": e.time_s,
             "training_seeds": info.training_seeds() if info and info.learned else None})
-    return {"command": command, "base": board.base, "sets": sets, "rows": rows}
+    across = []
+    for g in board.seeded:
+        st, pair = g.stats, g.pair
+        across.append({
+            "set": g.source.name, "tier": tiers[order[id(g.source)]][0], "method": g.label,
+            "seed_methods": g.methods, "setting": g.setting, "uncertainty": g.level,
+            "seeds": st.seeds, "scenarios": st.scenarios, "mean": _number(st.mean),
+            "ci95": [_number(st.low), _number(st.high)], "iqm": _number(st.iqm),
+            "iqm_ci95": [_number(st.iqm_low), _number(st.iqm_high)],
+            "seed_means": {"lowest": _number(st.lowest), "highest": _number(st.highest),
+                           "sd": _number(st.sd)},
+            "fraction_of_u": _number(g.fraction_of_u),
+            "diff_to_base": [_number(x) for x in (pair.mean, pair.low, pair.high)]
+            if pair else None, "unpaired": g.unpaired or None,
+            "p_seed_beats_base": _number(pair.beats) if pair else None,
+            "p_beats_base": _number(g.beats), "time_per_scenario_s": g.time_s})
+    return {"command": command, "base": board.base, "sets": sets, "rows": rows,
+            "across_seeds": across}
 
 
 def _write(out: Path, files: dict[str, bytes]) -> None:

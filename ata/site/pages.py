@@ -10,16 +10,24 @@ from html import escape
 from typing import Any
 
 from ata.results.report import title
+from ata.results.seeds import PairAcross
 from ata.runtime.folders import safe_name
 from ata.site.board import Board, Entry
+from ata.site.seeds import SeedEntry
 from ata.site.sources import MethodInfo, Source
 
+NAN = float("nan")
 Tier = tuple[str, Any, str]
 """(tier, the record behind it or None, why in a sentence), as `ata.site.verify.tier`."""
 
 
 def page_name(source: Source, method: str) -> str:
     return f"method-{source.slug}-{safe_name(method, 'method')}.html"
+
+
+def seeds_page_name(source: Source, group: str) -> str:
+    """The page of a method's training seeds (`ata.site.seeds`)."""
+    return f"seeds-{source.slug}-{safe_name(group, 'method')}.html"
 
 
 def _page(heading: str, body: list[str], css: str = "site.css") -> str:
@@ -90,22 +98,35 @@ def _short_machine(info: dict[str, Any]) -> str:
         "not recorded"
 
 
+def _diff(paired_n: int, d: float, lo: float, hi: float, unpaired: str) -> str:
+    if not paired_n:
+        return f'<span title="{escape(unpaired)}">&ndash;</span>'
+    ahead = ' class="ahead"' if lo > 0 or hi < 0 else ""
+    return f"<span{ahead}>{d:+.1f} [{lo:+.1f}, {hi:+.1f}]</span>"
+
+
+def _pair_td(pair: PairAcross | None, unpaired: str) -> str:
+    """A cell of a difference across seeds (`ata.results.seeds.pair_across`), or why none."""
+    if pair is None:
+        return _td(_diff(0, NAN, NAN, NAN, unpaired), "")
+    return _td(_diff(pair.scenarios, pair.mean, pair.low, pair.high, ""), pair.mean)
+
+
 def leaderboard(board: Board, setting: str, level: str, tiers: dict[int, Tier],
                 order: dict[int, int]) -> list[str]:
-    """One (setting, level) table, sorted by mean score, best first."""
+    """One (setting, level) table, sorted by mean score, best first: each method, and a method
+    with training seeds as one row across its seeds (its seeds' rows are on its page)."""
     base = escape(board.base)
     head = ["tier", "method", "set", "scenarios", "mean score", "95% CI", "fraction of U",
             f"method &minus; {base} [95% CI]", f"P(beats {base})", "s / scenario",
             "training seeds"]
     rows = []
-    for e in sorted(board.table(setting, level), key=lambda e: -e.mean):
+    for e in board.table(setting, level):
+        if e.seed_of:
+            continue
         name = tiers[order[id(e.source)]][0]
-        d, lo, hi = e.diff
-        ahead = ' class="ahead"' if e.paired_n and (lo > 0 or hi < 0) else ""
-        diff = (f'<span title="{escape(e.unpaired)}">&ndash;</span>' if not e.paired_n else
-                f"<span{ahead}>{d:+.1f} [{lo:+.1f}, {hi:+.1f}]</span>")
         seeds, seeds_v = _seeds(e.source.methods.get(e.method))
-        rows.append("<tr>" + "".join([
+        rows.append((-e.mean, "<tr>" + "".join([
             _td(_tier(name), name, "text"),
             _td(f'<a href="{page_name(e.source, e.method)}">{escape(e.label)}</a>', e.label,
                 "text"),
@@ -114,14 +135,32 @@ def leaderboard(board: Board, setting: str, level: str, tiers: dict[int, Tier],
             _td(f"{e.mean:.1f}", e.mean),
             _td(f"[{e.low:.1f}, {e.high:.1f}]", e.low),
             _td(_num(e.fraction_of_u, ".3f"), e.fraction_of_u),
-            _td(diff, d if e.paired_n else ""),
+            _td(_diff(e.paired_n, *e.diff, e.unpaired), e.diff[0] if e.paired_n else ""),
             _td(_num(e.beats, ".3f"), e.beats),
             _td(_num(e.time_s, ".3g"), e.time_s if e.time_s is not None else ""),
-            _td(seeds, seeds_v)]) + "</tr>")
+            _td(seeds, seeds_v)]) + "</tr>"))
+    for g in board.seed_table(setting, level):
+        name = tiers[order[id(g.source)]][0]
+        st, pair = g.stats, g.pair
+        two = ' title="two-level bootstrap: seeds, then scenarios"' if st.two_level else ""
+        rows.append((-st.mean, '<tr class="seeds">' + "".join([
+            _td(_tier(name), name, "text"),
+            _td(f'<a href="{seeds_page_name(g.source, g.group)}">{escape(g.label)}</a>',
+                g.label, "text"),
+            _td(escape(_set_name(g.source)), g.source.name, "text"),
+            _td(f"{st.scenarios} &times; {st.seeds}", st.scenarios * st.seeds),
+            _td(f"{st.mean:.1f}", st.mean),
+            _td(f"<span{two}>[{st.low:.1f}, {st.high:.1f}]</span>", st.low),
+            _td(_num(g.fraction_of_u, ".3f"), g.fraction_of_u),
+            _pair_td(pair, g.unpaired),
+            _td(_num(g.beats, ".3f"), g.beats),
+            _td(_num(g.time_s, ".3g"), g.time_s if g.time_s is not None else ""),
+            _td(f"{st.seeds} ({', '.join(map(str, g.seeds))})", st.seeds)]) + "</tr>"))
     anchor = f"{setting}-{level}"
     return [f'<h2 id="{escape(anchor)}">{escape(title(setting, level).capitalize())}</h2>',
             f'<div class="scroll"><table class="sortable" id="table-{escape(anchor)}">',
-            _head(head), "<tbody>", *rows, "</tbody>", "</table></div>"]
+            _head(head), "<tbody>", *[r for _, r in sorted(rows, key=lambda r: r[0])],
+            "</tbody>", "</table></div>"]
 
 
 def sets_table(sources: list[Source], tiers: dict[int, Tier]) -> list[str]:
@@ -164,7 +203,15 @@ def index_html(sources: list[Source], board: Board, tiers: dict[int, Tier],
             "scenarios with its 95% bootstrap interval (bold where it excludes 0), the share "
             f"of those scenarios where the method scores more than {base} (ties count half), "
             "the time per scenario on the machine that made the rows, and the seeds of the "
-            "training runs of a learned method's weights.</p>"]
+            "training runs of a learned method's weights.</p>",
+            "<p>A method trained from several seeds (the rows of NAME seed S) has one row "
+            "across its seeds, shaded: over the scenarios every seed ran (scenarios &times; "
+            "seeds), the mean over the seeds, its 95% interval and the difference to "
+            f"{base} from the two-level bootstrap (seeds, then scenarios), and the share of "
+            f"(seed, scenario) pairs where a seed scores more than {base}. Its page has the "
+            "statistics across seeds (IQM, spread, P(a seed beats)) and each seed's row. "
+            "A plain NAME beside the seeds is another run (the default weights) with its own "
+            "row.</p>"]
     for setting, level in board.groups():
         body += leaderboard(board, setting, level, tiers, order)
     if figures:
@@ -253,3 +300,64 @@ def _cells(source: Source, info: MethodInfo) -> list[str]:
             out += ["<details><summary>resolved mission</summary>",
                     f"<pre>{escape(c['mission'])}</pre></details>"]
     return out
+
+
+def seeds_html(source: Source, group: str, rows: list[SeedEntry], members: list[Entry],
+               tier: Tier, base: str) -> str:
+    """The page of a method's training seeds: per cell, the seeds as one (`ata.site.seeds`:
+    `ata report`'s statistics across seeds), against the base and against the set's plain run
+    of the method (its default weights) where it has one, then each seed's row."""
+    label = rows[0].label
+    name, _, why = tier
+    b, g = escape(base), escape(group)
+    body = ['<p><a href="index.html">&larr; all results</a></p>', f"<h1>{escape(label)}</h1>",
+            "<dl>", f"<dt>set</dt><dd>{escape(_set_name(source))}</dd>",
+            f"<dt>tier</dt><dd>{_tier(name)} {escape(why)}</dd>",
+            f"<dt>seeds</dt><dd>{escape(', '.join(rows[0].methods))}</dd>", "</dl>",
+            f"<p>The rows of {g}'s training seeds ({g} seed S), per "
+            "cell: the mean over the seeds of their mean scores, on the scenarios every seed "
+            "ran, with its 95% interval from the two-level bootstrap (a resample draws the "
+            "seeds, then the scenarios, one scenario draw for every seed and for the other "
+            "method of a pair), the interquartile mean of the seeds' means with its interval, "
+            "and the spread of the seeds' means. P(a seed beats B) is the share of (seed, "
+            "run of B) pairs whose mean over the paired scenarios is higher for the seed, ties "
+            f"counting half. {g} (one run), where the set has it, is the plain {g} beside "
+            "the seeds: another run (the default weights).</p>",
+            "<h2>Across seeds</h2>", '<div class="scroll"><table class="sortable" '
+            'id="table-seeds">',
+            _head(["cell", "seeds", "scenarios", "mean score [95% CI]", "IQM [95% CI]",
+                   "seed means: lowest to highest (sd)", f"&minus; {b} [95% CI]",
+                   f"P(a seed beats {b})", f"&minus; {g} (one run) [95% CI]",
+                   f"P(a seed beats {g} (one run))"]), "<tbody>"]
+    for r in rows:
+        st, pair, dflt = r.stats, r.pair, r.default
+        spread = "&ndash;" if st.seeds == 1 else \
+            f"{st.lowest:.1f} to {st.highest:.1f} ({st.sd:.1f})"
+        body.append("<tr>" + "".join([
+            _td(r.cell, r.cell, "text"), _td(str(st.seeds), st.seeds),
+            _td(str(st.scenarios), st.scenarios),
+            _td(f"{st.mean:.1f} [{st.low:.1f}, {st.high:.1f}]", st.mean),
+            _td(f"{st.iqm:.1f} [{st.iqm_low:.1f}, {st.iqm_high:.1f}]", st.iqm),
+            _td(spread, st.highest - st.lowest if st.seeds > 1 else ""),
+            _pair_td(pair, r.unpaired),
+            _td(_num(pair.beats if pair else None, ".2f"), pair.beats if pair else ""),
+            _pair_td(dflt, f"the set has no {group}"),
+            _td(_num(dflt.beats if dflt else None, ".2f"), dflt.beats if dflt else "")])
+            + "</tr>")
+    body += ["</tbody>", "</table></div>", "<h2>Each seed</h2>",
+             '<div class="scroll"><table class="sortable" id="table-each-seed">',
+             _head(["cell", "seed", "scenarios", "mean score [95% CI]",
+                    f"method &minus; {b} [95% CI]", f"P(beats {b})", "s / scenario"]),
+             "<tbody>"]
+    for e in members:
+        body.append("<tr>" + "".join([
+            _td(e.cell, e.cell, "text"),
+            _td(f'<a href="{page_name(e.source, e.method)}">{escape(e.label)}</a>', e.label,
+                "text"),
+            _td(str(e.n), e.n), _td(f"{e.mean:.1f} [{e.low:.1f}, {e.high:.1f}]", e.mean),
+            _td(_diff(e.paired_n, *e.diff, e.unpaired), e.diff[0] if e.paired_n else ""),
+            _td(_num(e.beats, ".3f"), e.beats),
+            _td(_num(e.time_s, ".3g"), e.time_s if e.time_s is not None else "")]) + "</tr>")
+    body += ["</tbody>", "</table></div>",
+             "<p>Each seed's page holds its provenance: its code, weights and missions.</p>"]
+    return _page(f"ATA results: {label}", body)
