@@ -216,3 +216,32 @@ def test_the_figures_draw_the_plain_methods_and_leave_the_seeds_to_the_tables(tm
     assert drawn["fig_setting_a"] == ["ATA-HRL", "w/o.AUX", "greedy"]
     assert drawn["fig_ablations"] == ["ATA-HRL", "w/o.AUX"]
     assert "ATA-HRL seed 0" not in drawn["fig_paired"] and "ATA-HRL" in drawn["fig_paired"]
+    # the seeds are drawn together, in fig_seeds, beside the plain run of their name
+    assert drawn["fig_seeds"] == ["ATA-HRL (2 seeds)", "the plain run (default weights)"]
+
+
+def test_fig_seeds_draws_the_two_level_interval_each_seed_and_the_plain_run(tmp_path):
+    from ata.results.report import pyplot
+    from ata.results.seed_figure import seeds_figure
+    gen = np.random.default_rng(5)
+    base = gen.normal(40, 5, 12)
+    res = read_results(write_results(tmp_path / "eval", {
+        "mine": base + 9, **{f"mine seed {s}": base + 3 * s + gen.normal(0, 1, 12)
+                             for s in range(3)}, "greedy": base}))
+    plt = pyplot()
+    fig = seeds_figure(plt, res, 500)
+    [ax] = fig.axes
+    [bar] = ax.containers                         # one method with seeds, one level
+    (_, y), (_, y_high) = bar.lines[2][0].get_segments()[0]
+    scores = sd.seed_matrix(res, [f"mine seed {s}" for s in range(3)], "a", "medium")[0]
+    st = sd.across_seeds(scores, resamples=500)
+    assert (y, y_high) == pytest.approx((st.low, st.high))
+    assert st.high - st.low > 2 * (bootstrap_ci(scores[0], 500)[2] - scores[0].mean())
+    from matplotlib.collections import PathCollection
+    dots = [c.get_offsets()[:, 1] for c in ax.collections
+            if isinstance(c, PathCollection) and len(c.get_offsets())]
+    assert sorted(np.concatenate(dots)) == pytest.approx(sorted([*scores.mean(1),
+                                                                 (base + 9).mean()]))
+    plt.close(fig)
+    res = read_results(write_results(tmp_path / "plain", {"mine": base, "greedy": base}))
+    assert seeds_figure(plt, res) is None

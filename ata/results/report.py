@@ -25,6 +25,8 @@ from ata.runtime import extras
 from ata.runtime.folders import prepare_out_dir, writing
 from ata.results.rows import (BOOTSTRAP_SEED, RESAMPLES, Results, beat_probability,
                                     bootstrap_ci, nanmean, paired_values, read_results)
+from ata.results.seed_figure import (CAPTION as SEEDS_CAPTION, STEM as SEEDS_STEM,
+                                     seeds_figure)
 from ata.results.seeds import SeedTable, has_seeds, plain_methods, seed_tables
 
 DEFAULT_REFERENCE = "ATA-HRL"
@@ -249,6 +251,8 @@ def figure_caption(stem: str, report: Report, paired: list[Paired] = ()) -> str:
         return (f"`{stem}`: {report.reference} and the methods whose names start with "
                 f"{ABLATION_PREFIX}, the mean score with its 95% CI across the levels, a panel "
                 f"per setting.")
+    if stem == SEEDS_STEM:
+        return SEEDS_CAPTION
     if stem == "fig_paired":
         ref = paired[0].reference if paired else "the reference"
         return (f"`{stem}`: the paired difference method - {ref} on the same scenarios (points), "
@@ -292,12 +296,15 @@ def save_figure(fig: Any, out_dir: str | Path, stem: str, *, tight: bool = True,
     return paths
 
 
-def figures(report: Report, out_dir: str | Path, paired: list[Paired] = ()) -> list[Path]:
+def figures(report: Report, out_dir: str | Path, paired: list[Paired] = (),
+            resamples: int = RESAMPLES) -> list[Path]:
     """fig_setting_<s>.{png,svg} per setting (bars of the mean score with CI error bars, per
     method, grouped by level) and fig_ablations.{png,svg} (the reference and the w/o methods
     across the levels), after the paper's Fig. 4; with `paired`, fig_paired.{png,svg}
     (`paired_figure`). Figures without data are skipped. A training seed's rows (``NAME seed
-    S``) are left to the tables across seeds: the figures draw the other methods."""
+    S``) are left to the tables across seeds and to fig_seeds.{png,svg}
+    (`ata.results.seed_figure`), drawn where some method has seeds: these figures draw the
+    other methods."""
     plt = pyplot()
     out = Path(out_dir)
     res = report.results
@@ -363,6 +370,10 @@ def figures(report: Report, out_dir: str | Path, paired: list[Paired] = ()) -> l
     if paired:
         fig = paired_figure(plt, res, paired)
         written += save_figure(fig, out, "fig_paired")
+        plt.close(fig)
+    fig = seeds_figure(plt, res, resamples)
+    if fig is not None:
+        written += save_figure(fig, out, SEEDS_STEM)
         plt.close(fig)
     return written
 
@@ -443,7 +454,7 @@ def write_report(run_dir: str | Path, reference: str | None = None, with_figures
     with writing(out):
         if with_figures:
             paired = paired_differences(res, paired_ref, resamples)
-            written = figures(report, out, paired)
+            written = figures(report, out, paired, resamples)
         path = out / "report.md"
         path.write_text(markdown(report, written, paired), encoding="utf-8")
     return report, [path] + written

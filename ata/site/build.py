@@ -24,6 +24,7 @@ from ata.core.errors import MissionError
 from ata.results.report import (ABLATION_PREFIX, DEFAULT_REFERENCE, Report, figure_caption,
                                 figures as draw, pyplot)
 from ata.results.rows import RESAMPLES
+from ata.results.seed_figure import STEM as SEEDS_STEM, drawn as seeds_drawn
 from ata.runtime.folders import prepare_out_dir, refuse_other_kind, writing
 from ata.site.assets import CSS, JS
 from ata.site.pages import (Tier, index_html, method_html, page_name, seeds_html,
@@ -87,7 +88,8 @@ def build_site(specs: list[str], out: str | Path, *, base: str | None = None,
     command = command or "ata site " + " ".join(s.spec for s in sources) + " -o site"
     files: dict[str, bytes] = {}
     with tempfile.TemporaryDirectory() as tmp:
-        shown = _figures(board, sources, Path(tmp), draw_figures) if with_figures else []
+        shown = _figures(board, sources, Path(tmp), draw_figures, resamples) \
+            if with_figures else []
         for path in sorted(Path(tmp).glob("*.png")):     # PNG alone: half the bytes to host
             files[path.name] = path.read_bytes()
     files["index.html"] = index_html(sources, board, tiers, shown, command).encode()
@@ -116,8 +118,8 @@ def build_site(specs: list[str], out: str | Path, *, base: str | None = None,
     return Site(out, sources, board, tiers, sorted(files))
 
 
-def _figures(board: Board, sources: list[Source], folder: Path,
-             draw_them: bool = True) -> list[tuple[str, str]]:
+def _figures(board: Board, sources: list[Source], folder: Path, draw_them: bool = True,
+             resamples: int = RESAMPLES) -> list[tuple[str, str]]:
     """`ata report`'s figures of the merged rows into `folder`: (stem, caption) of each."""
     res = merged(sources)
     reference = DEFAULT_REFERENCE if DEFAULT_REFERENCE in res.methods else board.base
@@ -125,7 +127,8 @@ def _figures(board: Board, sources: list[Source], folder: Path,
     paired = report_paired(board)
     stems = planned(report, paired)
     if draw_them:
-        drawn = [p.stem for p in draw(report, folder, paired) if p.suffix == ".png"]
+        drawn = [p.stem for p in draw(report, folder, paired, resamples)
+                 if p.suffix == ".png"]
         if drawn != stems:
             raise AssertionError(f"figures drawn {drawn}, planned {stems}")
     return [(stem, figure_caption(stem, report, paired).replace("`", "")) for stem in stems]
@@ -139,7 +142,8 @@ def planned(report: Report, paired: list) -> list[str]:
            if any(c.setting == s for c in cells)]
     if any(c.method.startswith(ABLATION_PREFIX) for c in cells):
         out.append("fig_ablations")
-    return out + (["fig_paired"] if paired else [])
+    return out + (["fig_paired"] if paired else []) + \
+        ([SEEDS_STEM] if seeds_drawn(report.results) else [])
 
 
 def _number(x: Any) -> Any:
