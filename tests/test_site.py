@@ -229,6 +229,21 @@ def test_a_methods_seeds_are_one_leaderboard_row_across_seeds_and_a_page_of_each
     assert across["diff_to_base"][0] == pytest.approx(mine.mean() - base.mean())
 
 
+def test_a_second_set_s_seeds_keep_their_method_s_name_on_the_page(seeded, tmp_path):
+    from ata.results.seed_figure import seeded as seeded_methods
+    from ata.site.board import labels, merged
+    sources = [load_source(seeded), load_source(seeded)]
+    sources[1].name = "again"
+    names = labels(sources)
+    assert names[(1, "mine seed 2")] == "mine [again] seed 2"
+    assert names[(1, "mine")] == "mine [again]"
+    # the figures read the merged rows: each set's seeds are one method there
+    assert {k: len(v) for k, v in seeded_methods(merged(sources)).items()} == \
+        {"mine": 3, "mine [again]": 3}
+    site = build_site([str(seeded), str(seeded)], tmp_path / "site", draw_figures=False)
+    assert [g.label for g in site.board.seeded] == ["mine (3 seeds)", "mine (3 seeds) [eval-2]"]
+
+
 def test_a_set_without_seeds_has_no_row_across_seeds(tiny, tmp_path):
     site = build_site([str(tiny / "eval")], tmp_path / "site", draw_figures=False)
     assert site.board.seeded == [] and not [f for f in site.files if f.startswith("seeds-")]

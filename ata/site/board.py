@@ -22,6 +22,7 @@ from ata.published.sets import cell_name
 from ata.results.report import Cell, Paired
 from ata.results.rows import (RESAMPLES, Results, beat_probability, bootstrap_ci, level_key,
                               nanmean, paired)
+from ata.results.seeds import split_seed
 from ata.site.seeds import SeedEntry, build_seed_entries, seeded_groups
 from ata.site.sources import Source
 
@@ -81,13 +82,15 @@ class Board:
 
 def labels(sources: list[Source]) -> dict[tuple[int, str], str]:
     """(source index, method) -> its name on the page: the method's own, with ' [SET]' added
-    where an earlier set has a method of that name."""
+    where an earlier set has a method of that name (before a training seed's ' seed S', so that
+    the set's seeds stay one method's: ``NAME [SET] seed S``)."""
     out, taken = {}, set()
     for k, src in enumerate(sources):
         for method in src.results.methods:
             label = src.results.label(method)
             if label in taken:
-                label = f"{label} [{src.name}]"
+                name, seed = split_seed(label)
+                label = f"{name} [{src.name}]" + (f" seed {seed}" if seed is not None else "")
             taken.add(label)
             out[(k, method)] = label
     return out
