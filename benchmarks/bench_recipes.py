@@ -1,7 +1,7 @@
 """Each built-in training recipe's training time on this machine beside its goal, and the
 held-out paired difference of newly trained weights against the shipped ones.
 
-Usage: python benchmarks/bench_recipes.py [--quick] [--only ata_hrl,tr_pomdp,atrl_tr]
+Usage: python benchmarks/bench_recipes.py [--quick] [--only ata_hrl,tr_pomdp,atrl_tr] [--repeats N]
            [--trained RECIPE=DIR ...] [--paired EVAL_DIR --method NAME] [--skip-timing]
 
 The recipes and their goals (issue 60): ATA-HRL (a) (ata/missions/train_ata_hrl.toml) at most
@@ -16,8 +16,10 @@ an idle core would take when other work shares the machine. ATA-HRL:
 `bench_training.recipe_estimate` (teacher rollouts, aux steps, ITA and CTR steps, one validation
 of each phase and a checkpoint write). TR-POMDP and AtRL-TR: DQN steps at indices spread over
 the recipe (epsilon decays over the steps; the replay fills as it would), one validation and one
-checkpoint write (with its replay buffers). A full recipe takes 40 to 110 minutes on 2 cores,
-which this does not spend.
+checkpoint write (with its replay buffers). A full recipe takes 14 to 30 minutes of a core,
+which this does not spend. `--repeats N` times each recipe N times, a fresh trainer each, and
+judges the median (each repeat times the same steps: the spread is the shared machine's, and a
+recipe near its goal can read on either side of it in single runs).
 
 `--trained RECIPE=DIR` reads instead a finished training folder's *measured* time: its
 trained.json (`wall_s`, the trainer's own clock), or, for a folder of seeds, each seed's.
@@ -141,6 +143,9 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true",
                         help="fewer calls timed: ATA-HRL 10 aux, 3 ITA, 1 CTR step; DQN 4 steps")
     parser.add_argument("--only", default=",".join(RECIPES), help="recipes to time")
+    parser.add_argument("--repeats", type=int, default=1, metavar="N",
+                        help="time each recipe N times, each with a fresh trainer, and judge "
+                             "the median (a recipe near its goal flips between single runs)")
     parser.add_argument("--trained", action="append", default=[], metavar="RECIPE=DIR",
                         help="read RECIPE's time from a finished training folder instead")
     parser.add_argument("--skip-timing", action="store_true", help="time no recipe")
@@ -160,6 +165,8 @@ def main() -> None:
     unknown = [r for r in [*trained, *args.only.split(",")] if r not in RECIPES]
     if unknown:
         parser.error(f"no recipe {unknown[0]!r}; recipes: {', '.join(RECIPES)}")
+    if args.repeats < 1:
+        parser.error("--repeats: at least 1")
     summary = []
     for name in [] if args.skip_timing else args.only.split(","):
         label, plugins, goal = RECIPES[name]
@@ -174,24 +181,32 @@ def main() -> None:
                     bench_training.recipe_estimate(1, 1, 1)
                 else:
                     dqn_estimate(plugins, 1)
-            wall0, cpu0 = time.perf_counter(), time.process_time()
-            if name == "ata_hrl":
-                # ITA steps differ by their scenarios by a third: one step is too few
-                calls = (10, 3, 1) if args.quick else (20, 6, 2)
-                rows = bench_training.recipe_estimate(*calls)
-            else:
-                rows, _ = dqn_estimate(plugins, 4 if args.quick else 8)
-            for part, sec, n, m, est in rows:
-                print(f"[{name}] {part}: {sec:.1f} s for {n} -> {est:.0f} s for the recipe's {m}",
-                      flush=True)
-            minutes = sum(r[4] for r in rows) / 60
-            # this process's share of a core while it was timed: below 1 where other work
-            # shared the cores (the recipes train on one thread), so the CPU-time figure is
-            # what an idle core would take
-            share = (time.process_time() - cpu0) / (time.perf_counter() - wall0)
-            judged = minutes * min(share, 1.0)
+            walls, cpus, shares = [], [], []
+            for k in range(args.repeats):
+                wall0, cpu0 = time.perf_counter(), time.process_time()
+                if name == "ata_hrl":
+                    # ITA steps differ by their scenarios by a third: one step is too few
+                    calls = (10, 3, 1) if args.quick else (20, 6, 2)
+                    rows = bench_training.recipe_estimate(*calls)
+                else:
+                    rows, _ = dqn_estimate(plugins, 4 if args.quick else 8)
+                tag = f"[{name}]" if args.repeats == 1 else f"[{name} {k + 1}/{args.repeats}]"
+                for part, sec, n, m, est in rows:
+                    print(f"{tag} {part}: {sec:.1f} s for {n} -> {est:.0f} s for the recipe's "
+                          f"{m}", flush=True)
+                walls.append(sum(r[4] for r in rows) / 60)
+                # this process's share of a core while it was timed: below 1 where other work
+                # shared the cores (the recipes train on one thread), so the CPU-time figure
+                # is what an idle core would take
+                shares.append((time.process_time() - cpu0) / (time.perf_counter() - wall0))
+                cpus.append(walls[-1] * min(shares[-1], 1.0))
+            minutes, judged = float(np.median(walls)), float(np.median(cpus))
             cpu_text = f"{judged:6.1f}"
-            how = f"extrapolated from the calls above; it had {share:.0%} of a core"
+            how = f"extrapolated from the calls above; it had {min(shares):.0%} of a core"
+            if args.repeats > 1:
+                how = (f"median of {args.repeats} extrapolations (CPU "
+                       f"{', '.join(f'{c:.1f}' for c in cpus)}); at least {min(shares):.0%} of "
+                       "a core")
         verdict = "meets it" if judged <= goal else f"{judged / goal:.1f}x over"
         summary.append(f"{label:12s} {minutes:6.1f} {cpu_text}   <= {goal} min  {verdict:10s} "
                        f"{how}")

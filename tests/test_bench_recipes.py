@@ -56,3 +56,18 @@ def test_new_weights_are_paired_with_the_published_method_on_expected_points(
     assert "(expected_score, SET)" in out
     assert "new - ATA-HRL | 2 / 1 | 12 | +2.0 [" in out and "| 1.00" in out
     assert "greedy" not in out
+
+
+def test_repeats_judge_the_median_of_the_recipe_s_extrapolations(monkeypatch, capsys):
+    totals = iter([14.0, 16.0, 15.2])          # minutes of three repeats, in turn
+
+    def estimate(*_calls):
+        return [("ITA steps", 1.0, 1, 1, next(totals) * 60)]
+    monkeypatch.setattr(bench_recipes.bench_training, "recipe_estimate", estimate)
+    monkeypatch.setattr(sys, "argv", ["bench_recipes.py", "--only", "ata_hrl", "--repeats", "3",
+                                      "--no-warm-up"])
+    bench_recipes.main()
+    out = capsys.readouterr().out
+    assert "[ata_hrl 3/3] ITA steps" in out
+    [row] = [line for line in out.splitlines() if line.strip().startswith("ATA-HRL (a)")]
+    assert row.split()[2] == "15.2" and "median of 3 extrapolations" in row   # not 14.0 or 16.0
