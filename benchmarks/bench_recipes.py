@@ -18,8 +18,8 @@ of each phase and a checkpoint write). TR-POMDP and AtRL-TR: DQN steps at indice
 the recipe (epsilon decays over the steps; the replay fills as it would), one validation and one
 checkpoint write (with its replay buffers). A full recipe takes 14 to 30 minutes of a core,
 which this does not spend. `--repeats N` times each recipe N times, a fresh trainer each, and
-judges the median (each repeat times the same steps: the spread is the shared machine's, and a
-recipe near its goal can read on either side of it in single runs).
+judges the median (each repeat times the next ITA and CTR steps, other scenarios; a recipe
+near its goal can read on either side of it in single runs).
 
 `--trained RECIPE=DIR` reads instead a finished training folder's *measured* time: its
 trained.json (`wall_s`, the trainer's own clock), or, for a folder of seeds, each seed's.
@@ -187,7 +187,8 @@ def main() -> None:
                 if name == "ata_hrl":
                     # ITA steps differ by their scenarios by a third: one step is too few
                     calls = (10, 3, 1) if args.quick else (20, 6, 2)
-                    rows = bench_training.recipe_estimate(*calls)
+                    # each repeat times other steps: other scenarios
+                    rows = bench_training.recipe_estimate(*calls, first_step=k * calls[1])
                 else:
                     rows, _ = dqn_estimate(plugins, 4 if args.quick else 8)
                 tag = f"[{name}]" if args.repeats == 1 else f"[{name} {k + 1}/{args.repeats}]"

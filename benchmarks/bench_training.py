@@ -55,7 +55,8 @@ def validations(steps: int, eval_every: int) -> int:
 
 
 def recipe_estimate(aux_steps: int = 20, ita_steps: int = 2, ctr_steps: int = 1,
-                    overrides: list[str] = ()) -> list[tuple[str, float, int, int, float]]:
+                    overrides: list[str] = (), first_step: int = 0
+                    ) -> list[tuple[str, float, int, int, float]]:
     """The built-in (a) recipe's wall time by part, extrapolated from a few calls of each part.
 
     The trainer of ata/missions/train_ata_hrl.toml is built as `ata train --plugins ctr,aux`
@@ -63,7 +64,8 @@ def recipe_estimate(aux_steps: int = 20, ita_steps: int = 2, ctr_steps: int = 1,
     (``aux.rows``), `aux_steps` aux steps, `ita_steps` ITA and `ctr_steps` CTR steps (each
     after one untimed step: a fresh trainer's first step costs up to twice a later one), one
     validation of each policy phase and one checkpoint write; `overrides` (``TABLE.KEY=VALUE``,
-    as ``--set``) change the recipe's settings. Returns (part, measured seconds, calls measured,
+    as ``--set``) change the recipe's settings; the timed ITA and CTR steps are those after
+    `first_step` (their scenarios: another `first_step`, other scenarios). Returns (part, measured seconds, calls measured,
     calls in the recipe, extrapolated seconds) rows: linear in the calls."""
     session = load_session(str(training_mission_for(["ctr", "aux"])), list(overrides))
     trainer = build_trainer(session)
@@ -93,7 +95,8 @@ def recipe_estimate(aux_steps: int = 20, ita_steps: int = 2, ctr_steps: int = 1,
         label = part.name.upper()
         n = ita_steps if part.name == "ita" else ctr_steps
         part.step(0)        # untimed: a fresh trainer's first step pays for its warm-up
-        rows.append((f"{label} steps", clock(lambda k: part.step(k + 1), n), n, steps))
+        rows.append((f"{label} steps", clock(lambda k: part.step(first_step + k + 1), n), n,
+                     steps))
         rows.append((f"{label} validations", clock(lambda _k: trainer.validate(part.name), 1), 1,
                      validations(steps, s.eval_every)))
     saves = sum(phases[p] // s.checkpoint_every + validations(phases[p], s.eval_every)

@@ -60,8 +60,10 @@ def test_new_weights_are_paired_with_the_published_method_on_expected_points(
 
 def test_repeats_judge_the_median_of_the_recipe_s_extrapolations(monkeypatch, capsys):
     totals = iter([14.0, 16.0, 15.2])          # minutes of three repeats, in turn
+    firsts = []
 
-    def estimate(*_calls):
+    def estimate(*calls, first_step=0):
+        firsts.append(first_step)
         return [("ITA steps", 1.0, 1, 1, next(totals) * 60)]
     monkeypatch.setattr(bench_recipes.bench_training, "recipe_estimate", estimate)
     monkeypatch.setattr(sys, "argv", ["bench_recipes.py", "--only", "ata_hrl", "--repeats", "3",
@@ -71,3 +73,4 @@ def test_repeats_judge_the_median_of_the_recipe_s_extrapolations(monkeypatch, ca
     assert "[ata_hrl 3/3] ITA steps" in out
     [row] = [line for line in out.splitlines() if line.strip().startswith("ATA-HRL (a)")]
     assert row.split()[2] == "15.2" and "median of 3 extrapolations" in row   # not 14.0 or 16.0
+    assert firsts == [0, 6, 12]                 # each repeat times the next 6 ITA steps
