@@ -65,8 +65,9 @@ def recipe_estimate(aux_steps: int = 20, ita_steps: int = 2, ctr_steps: int = 1,
     after one untimed step: a fresh trainer's first step costs up to twice a later one), one
     validation of each policy phase and one checkpoint write; `overrides` (``TABLE.KEY=VALUE``,
     as ``--set``) change the recipe's settings; the timed ITA and CTR steps are those after
-    `first_step` (their scenarios: another `first_step`, other scenarios). Returns (part, measured seconds, calls measured,
-    calls in the recipe, extrapolated seconds) rows: linear in the calls."""
+    `first_step` (their scenarios: another `first_step`, other scenarios). Returns (part,
+    measured seconds, calls measured, calls in the recipe, extrapolated seconds) rows: linear
+    in the calls."""
     session = load_session(str(training_mission_for(["ctr", "aux"])), list(overrides))
     trainer = build_trainer(session)
     s, phases = trainer.s, trainer.phases()

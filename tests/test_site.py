@@ -230,7 +230,7 @@ def test_a_methods_seeds_are_one_leaderboard_row_across_seeds_and_a_page_of_each
 
 
 def test_a_second_set_s_seeds_keep_their_method_s_name_on_the_page(seeded, tmp_path):
-    from ata.results.seed_figure import seeded as seeded_methods
+    from ata.results import seeds as sd
     from ata.site.board import labels, merged
     sources = [load_source(seeded), load_source(seeded)]
     sources[1].name = "again"
@@ -238,7 +238,7 @@ def test_a_second_set_s_seeds_keep_their_method_s_name_on_the_page(seeded, tmp_p
     assert names[(1, "mine seed 2")] == "mine [again] seed 2"
     assert names[(1, "mine")] == "mine [again]"
     # the figures read the merged rows: each set's seeds are one method there
-    assert {k: len(v) for k, v in seeded_methods(merged(sources)).items()} == \
+    assert {k: len(v) for k, v in sd.seeded(merged(sources).methods).items()} == \
         {"mine": 3, "mine [again]": 3}
     site = build_site([str(seeded), str(seeded)], tmp_path / "site", draw_figures=False)
     assert [g.label for g in site.board.seeded] == ["mine (3 seeds)", "mine (3 seeds) [eval-2]"]

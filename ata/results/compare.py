@@ -373,10 +373,10 @@ def leaderboards(a: Results, b: Results | None, columns: list[str], *,
                  tags: tuple[str, str] = ("A", "B"), b_methods: list[str] | None = None,
                  resamples: int = RESAMPLES, seed: int = BOOTSTRAP_SEED) -> list[Table]:
     """`ata compare`'s default: a table per (setting, level) and column: every method of A (of
-    `methods`, if given) and of B (of `b_methods`, if given) with its mean [95% CI], its paired difference method - base
-    [95% CI] and P(beats base) (`board_base` chooses the base), on the scenarios that the base
-    and every method of A ran there (a row with fewer says so in a column `n`). Two folders of
-    one cell each are paired across their cells."""
+    `methods`, if given) and of B (of `b_methods`, if given) with its mean [95% CI], its paired
+    difference method - base [95% CI] and P(beats base) (`board_base` chooses the base), on the
+    scenarios that the base and every method of A ran there (a row with fewer says so in a
+    column `n`). Two folders of one cell each are paired across their cells."""
     rows = None if methods is None else list(methods) + ([base] if base else [])
     for res, name in ((a, "the first folder"), (b, "the second folder")):
         if res is not None:

@@ -15,19 +15,13 @@ from typing import Any
 import numpy as np
 
 from ata.results.rows import RESAMPLES, Results
-from ata.results.seeds import across_seeds, seed_groups, seed_matrix, split_seed
+from ata.results.seeds import across_seeds, seed_matrix, seeded
 
 STEM = "fig_seeds"
 CAPTION = ("`fig_seeds`: each method with training seeds, across its seeds: the mean over the "
            "seeds with its two-level 95% bootstrap interval (seeds, then scenarios), each "
            "seed's mean as a dot, and the plain run of that name (the default weights) as a "
            "hollow diamond; a panel per setting, by uncertainty level.")
-
-
-def seeded(res: Results) -> dict[str, list[str]]:
-    """NAME -> its seeds' methods, for the methods with rows from training seeds."""
-    return {split_seed(ms[0])[0]: ms for ms in seed_groups(res.methods).values()
-            if split_seed(ms[0])[1] is not None}
 
 
 def _settings(res: Results, groups: dict[str, list[str]]) -> list[str]:
@@ -37,12 +31,12 @@ def _settings(res: Results, groups: dict[str, list[str]]) -> list[str]:
 
 def drawn(res: Results) -> bool:
     """Whether `seeds_figure` draws a figure of these results (some method has seeds)."""
-    return bool(_settings(res, seeded(res)))
+    return bool(_settings(res, seeded(res.methods)))
 
 
 def seeds_figure(plt: Any, res: Results, resamples: int = RESAMPLES) -> Any | None:
     """The figure (see the module's doc), or None where no method has seeds."""
-    groups = seeded(res)
+    groups = seeded(res.methods)
     settings = _settings(res, groups)
     if not settings:
         return None

@@ -78,6 +78,13 @@ def seed_groups(methods: list[str]) -> dict[str, list[str]]:
     return out
 
 
+def seeded(methods: list[str]) -> dict[str, list[str]]:
+    """The methods with rows from training seeds: NAME -> its seeds' names (``NAME seed S``),
+    in seed order (a plain NAME beside them is not one of them)."""
+    return {split_seed(ms[0])[0]: ms for ms in seed_groups(methods).values()
+            if split_seed(ms[0])[1] is not None}
+
+
 def has_seeds(res: Results) -> bool:
     """Whether some method of the results has rows from several training seeds."""
     return any(len(v) > 1 for v in seed_groups(res.methods).values())

@@ -22,8 +22,8 @@ from ata.published.sets import cell_name
 from ata.results.report import Cell, Paired
 from ata.results.rows import (RESAMPLES, Results, beat_probability, bootstrap_ci, level_key,
                               nanmean, paired)
-from ata.results.seeds import split_seed
-from ata.site.seeds import SeedEntry, build_seed_entries, seeded_groups
+from ata.results.seeds import seeded, split_seed
+from ata.site.seeds import SeedEntry, build_seed_entries
 from ata.site.sources import Source
 
 DEFAULT_BASE = "greedy"
@@ -112,7 +112,8 @@ def build_board(sources: list[Source], base: str | None = None,
     entries = []
     settings = sorted({s for src in sources for s in src.results.settings})
     levels = sorted({lv for src in sources for lv in src.results.levels}, key=level_key)
-    seed_of = [{m: g for g, ms in seeded_groups(src).items() for m in ms} for src in sources]
+    seed_of = [{m: g for g, ms in seeded(src.results.methods).items() for m in ms}
+               for src in sources]
     for setting in settings:
         for level in levels:
             cell = cell_name(setting, level)

@@ -17,8 +17,8 @@ import numpy as np
 
 from ata.published.sets import cell_name
 from ata.results.rows import RESAMPLES, nanmean
-from ata.results.seeds import (AcrossSeeds, PairAcross, across_seeds, pair_across, seed_groups,
-                               seed_matrix, split_seed)
+from ata.results.seeds import (AcrossSeeds, PairAcross, across_seeds, pair_across, seed_matrix,
+                               seeded, split_seed)
 from ata.site.sources import Source
 
 NAN = float("nan")
@@ -51,16 +51,6 @@ class SeedEntry:
         return [split_seed(m)[1] for m in self.methods]
 
 
-def seeded_groups(source: Source) -> dict[str, list[str]]:
-    """The set's methods with seeds: NAME -> its seeds' method names (``NAME seed S``)."""
-    out = {}
-    for methods in seed_groups(source.results.methods).values():
-        label, seed = split_seed(methods[0])
-        if seed is not None:
-            out[label] = methods
-    return out
-
-
 def seed_label(group: str, k: int) -> str:
     return f"{group} ({k} seed{'s' if k != 1 else ''})"
 
@@ -74,7 +64,7 @@ def build_seed_entries(sources: list[Source], base: tuple[int, str], settings: l
     bsrc = sources[bk]
     out, taken = [], set()
     for k, src in enumerate(sources):
-        for group, methods in seeded_groups(src).items():
+        for group, methods in seeded(src.results.methods).items():
             label = seed_label(group, len(methods))
             if label in taken:
                 label = f"{label} [{src.name}]"
