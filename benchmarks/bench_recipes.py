@@ -11,8 +11,10 @@ machine's cores (docs/training.md times them on 2).
 Training time, by default *extrapolated*: the trainer of each recipe is built as `ata train`
 builds it and a few of its own calls are timed (after one untimed call of each, which compiles
 what numba's cache lacks), then each part is scaled linearly to the recipe's counts; beside the
-wall time, the same in CPU time of this process (the recipes train on one thread), which is what
-an idle core would take when other work shares the machine. ATA-HRL:
+wall time, the wall time scaled by this process's share of a core where it had less than one
+(other work shared the machine): what an idle core would take, the recipes' rollouts running on
+one thread. ATA-HRL's update takes its parts' gradients side by side on two threads (`threads`),
+so on an idle 2-core machine it has more than a core, and its wall time stands. ATA-HRL:
 `bench_training.recipe_estimate` (teacher rollouts, aux steps, ITA and CTR steps, one validation
 of each phase and a checkpoint write). TR-POMDP and AtRL-TR: DQN steps at indices spread over
 the recipe (epsilon decays over the steps; the replay fills as it would), one validation and one
@@ -196,9 +198,10 @@ def main() -> None:
                     print(f"{tag} {part}: {sec:.1f} s for {n} -> {est:.0f} s for the recipe's "
                           f"{m}", flush=True)
                 walls.append(sum(r[4] for r in rows) / 60)
-                # this process's share of a core while it was timed: below 1 where other work
-                # shared the cores (the recipes train on one thread), so the CPU-time figure
-                # is what an idle core would take
+                # this process's CPU seconds per second while it was timed: below 1 where other
+                # work shared the cores (the recipes' rollouts run on one thread), so the
+                # CPU-time figure is what an idle core would take; above 1 where an update's
+                # parts ran side by side (ATA-HRL's `threads`): then the wall time stands
                 shares.append((time.process_time() - cpu0) / (time.perf_counter() - wall0))
                 cpus.append(walls[-1] * min(shares[-1], 1.0))
             minutes, judged = float(np.median(walls)), float(np.median(cpus))

@@ -1,11 +1,12 @@
 """Training throughput of ATA-HRL: episodes per second with and without the networks, in one run.
 
 Usage: python benchmarks/bench_training.py [--setting a] [--scenarios 16] [--samples 8]
-                                           [--repeats 3] [--threads 1] [--device cpu]
+                                           [--repeats 3] [--threads 2] [--device cpu]
 
-Setting (a), medium uncertainty, one torch thread (`--threads`), an untrained network of the shipped
-architecture; each row is the median of ``repeats`` timings of ``scenarios x samples`` episodes
-(one training step's worth). ``--device cuda`` runs the training steps' updates on a GPU
+Setting (a), medium uncertainty, one torch thread, the ITA update's parts on `--threads` threads
+(``[ata_hrl] threads``, the recipe's 2), an untrained network of the shipped architecture; each
+row is the median of ``repeats`` timings of ``scenarios x samples`` episodes (one training
+step's worth). ``--device cuda`` runs the training steps' updates on a GPU
 (``[ata_hrl] device``; the rollouts decode on the CPU) and adds the network's forward pass at
 a decoding step's size on each device. The rows:
 
@@ -73,7 +74,7 @@ def recipe_estimate(aux_steps: int = 20, ita_steps: int = 2, ctr_steps: int = 1,
     s, phases = trainer.s, trainer.phases()
     assert phases["status"] == 0 and phases["cond"] == 0, \
         "the recipe gained a phase this estimate does not time"
-    torch.set_num_threads(s.threads)
+    torch.set_num_threads(1)          # as the trainer's run: s.threads parallels the update
 
     def clock(fn, n: int) -> float:
         t0 = time.perf_counter()
@@ -138,15 +139,17 @@ def main() -> None:
     parser.add_argument("--scenarios", type=int, default=16)
     parser.add_argument("--samples", type=int, default=8)
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--threads", type=int, default=1, help="torch CPU threads")
+    parser.add_argument("--threads", type=int, default=2, help="[ata_hrl] threads: CPU threads "
+                        "of an ITA update (its parts side by side; the same weights)")
     parser.add_argument("--device", default="cpu", help="device of the training steps' "
                         "updates ([ata_hrl] device): cpu or cuda")
     args = parser.parse_args()
-    torch.set_num_threads(args.threads)
+    torch.set_num_threads(1)
     B, K = args.scenarios, args.samples
     n = B * K
     common = [f"mission.setting='{args.setting}'", f"ata_hrl.batch_size={B}",
-              f"ata_hrl.samples={K}", f"ata_hrl.device='{args.device}'"]
+              f"ata_hrl.samples={K}", f"ata_hrl.device='{args.device}'",
+              f"ata_hrl.threads={args.threads}"]
     session = load_session(str(training_mission_for(["ctr", "aux"])), common)
     trainer = build_trainer(session)
     mission = trainer.mission_of(args.setting, 777)
@@ -184,7 +187,7 @@ def main() -> None:
             ("ITA training step (rollout + update)", step(trainer.ita)),
             ("pi_C / pi_TR training step (rollout + update)", step(trainer.ctr))]
     table = Table(title=f"ATA-HRL training throughput, setting ({args.setting}), {B} scenarios x "
-                        f"{K} samples = {n} episodes, {args.threads} torch thread(s), updates "
+                        f"{K} samples = {n} episodes, update on {args.threads} thread(s), updates "
                         f"on {args.device}")
     for col in ("what", "seconds", "episodes/s", "x simulator", "rollout s", "update s"):
         table.add_column(col, justify="left" if col == "what" else "right")

@@ -64,7 +64,9 @@ class RunSettings:
                                 help="validation scenarios per team setting (and per "
                                 "uncertainty level, with uncertainty_levels); one batch")
     checkpoint_every: int = param(10, min=1, help="write checkpoint.pt every N steps")
-    threads: int = param(1, min=1, max=256, help="torch CPU threads")
+    threads: int = param(2, min=1, max=256, help="CPU threads of an ITA update: its parts' "
+                         "gradients side by side, each on one torch thread (the weights do not "
+                         "depend on it)")
     device: str = param("cpu", help="torch device of the ITA and CTR phases' updates (the "
                         "log-probabilities, backward and Adam step): 'cpu', or 'cuda' for a GPU; "
                         "the rollouts decode on the CPU, the other phases run there")
@@ -193,7 +195,7 @@ class ATAHRLTrainer:
     def run(self, run: TrainRun, resume: bool = False) -> dict[str, Any]:
         """Every phase, resuming wherever the counters stand."""
         self.loop.run = run
-        torch.set_num_threads(self.s.threads)
+        torch.set_num_threads(1)     # one reduction order: `threads` parallels the update's parts
         if resume and run.resumes:
             self.load(run.checkpoint_path, run.resume_checkpoint(KIND))
         else:

@@ -10,7 +10,7 @@ the ITA learned to, with greedy's keep-or-repair prior.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterator
+from typing import Callable, Iterator
 
 import numpy as np
 import torch
@@ -65,8 +65,13 @@ class CtrPhase(PolicyPhase):
         if self.tr.counters["ctr"] == 0 and self.tr.trains_ita:
             tr_from_ita(self.tr.net)
 
-    def parts(self, rec: Recorder, R: dict[str, np.ndarray]) -> Iterator[torch.Tensor]:
+    def parts(self, rec: Recorder, R: dict[str, np.ndarray]
+              ) -> Iterator[Callable[[], torch.Tensor]]:
         """One part: pi_C's and pi_TR's terms (each scenario's samples encoded once)."""
+        yield lambda: self.part(rec, R)
+
+    def part(self, rec: Recorder, R: dict[str, np.ndarray]) -> torch.Tensor:
+        """pi_C's and pi_TR's terms of the loss."""
         tr, K, dev = self.tr, self.tr.s.samples, self.tr.device
         net = tr.net
         loss = torch.zeros((), device=dev)
@@ -87,7 +92,7 @@ class CtrPhase(PolicyPhase):
                 advs.append(adv_all[item["rows"], item["epoch"]])
             loss = loss - (scaled(np.concatenate(advs), dev) * torch.cat(terms)).sum() \
                 / R["total"].size
-        yield loss
+        return loss
 
 
 def condition_log_prob(net, rec: Recorder, emb_i: dict[str, torch.Tensor]) -> torch.Tensor:

@@ -8,7 +8,8 @@ and skips the phase: the full method, its ablations and AtRL-TR can share one IT
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterator
+from functools import partial
+from typing import Callable, Iterator
 
 import numpy as np
 import torch
@@ -48,16 +49,19 @@ class ItaPhase(PolicyPhase):
     def lr(self) -> float:
         return self.tr.s.lr
 
-    def parts(self, rec: Recorder, R: dict[str, np.ndarray]) -> Iterator[torch.Tensor]:
+    def parts(self, rec: Recorder, R: dict[str, np.ndarray]
+              ) -> Iterator[Callable[[], torch.Tensor]]:
         """-(advantage * log-probability of the sample's decisions), averaged over decisions,
         in parts of whole scenarios (`UPDATE_GROUPS` at most); each scenario's samples are
         encoded once."""
         net, K, dev = self.tr.net, self.tr.s.samples, self.tr.device
         E = R["R_ITA"].size
         adv = scaled(shared_baseline_advantage(R["R_ITA"], K), dev)
-        for group in np.array_split(np.arange(E // K), min(UPDATE_GROUPS, E // K)):
-            rows = slice(group[0] * K, (group[-1] + 1) * K)
+
+        def part(rows: slice) -> torch.Tensor:
             feats = {g: v[rows] for g, v in rec.inherent.items()}
             emb = encode_once(net.ita.encoder, feats, dev)
             logp, _ = D.trace_log_prob(net.ita, emb, rec.ita.take(rows))
-            yield -(adv[rows] * logp).sum() / E
+            return -(adv[rows] * logp).sum() / E
+        for group in np.array_split(np.arange(E // K), min(UPDATE_GROUPS, E // K)):
+            yield partial(part, slice(group[0] * K, (group[-1] + 1) * K))

@@ -10,9 +10,10 @@ scenario's samples; one Adam step follows, the policies' gradients clipped to ``
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any, Iterator
+from typing import Any, Callable, Iterator
 
 import numpy as np
 import torch
@@ -117,12 +118,14 @@ class PolicyPhase:
 
     def loss(self, rec: Recorder, R: dict[str, np.ndarray]) -> torch.Tensor:
         """The step's loss: the sum of its parts."""
-        return sum(self.parts(rec, R))
+        return sum(part() for part in self.parts(rec, R))
 
-    def parts(self, rec: Recorder, R: dict[str, np.ndarray]) -> Iterator[torch.Tensor]:
-        """The step's loss in parts whose sum it is: the update takes each part's gradient in
-        turn (smaller passes, whose tensors stay in the processor's caches) and then steps
-        once on their sum."""
+    def parts(self, rec: Recorder, R: dict[str, np.ndarray]
+              ) -> Iterator[Callable[[], torch.Tensor]]:
+        """The step's loss in parts whose sum it is, each a function that builds its part: the
+        update takes each part's gradient apart (smaller passes, whose tensors stay in the
+        processor's caches; side by side on `threads` CPU threads) and then steps once on
+        their sum, added in the parts' order."""
         raise NotImplementedError
 
     def phase(self) -> Phase:
@@ -157,10 +160,18 @@ class PolicyPhase:
         tr = self.tr
         with on_device(tr.net, [tr.opt], tr.device):
             tr.opt.zero_grad()
+            params = [p for p in tr.net.parameters() if p.requires_grad]
+            threads = tr.s.threads if tr.device.type == "cpu" else 1
             loss = 0.0
-            for part in self.parts(rec, R):
-                part.backward()
-                loss += part.item()
+            for value, grads in part_gradients(list(self.parts(rec, R)), params, threads):
+                loss += value
+                for p, g in zip(params, grads):
+                    if g is None:
+                        continue
+                    if p.grad is None:
+                        p.grad = g
+                    else:
+                        p.grad += g       # as backward() accumulates: the parts in order
             self.update()
             return loss
 
@@ -171,3 +182,19 @@ class PolicyPhase:
         if tr.s.grad_clip > 0:
             torch.nn.utils.clip_grad_norm_(tr.policy_params, tr.s.grad_clip)
         tr.opt.step()
+
+
+def part_gradients(parts: list[Callable[[], torch.Tensor]], params: list[torch.Tensor],
+                   threads: int) -> list[tuple[float, tuple[torch.Tensor | None, ...]]]:
+    """Each part's loss value and its gradients with respect to `params` (None where a part
+    does not use one), in the parts' order. With `threads` above 1, that many parts are built
+    and differentiated side by side, each on its own thread, every torch operation on one CPU
+    thread (the trainer sets one): each part's gradients are those of `threads` = 1, bit for
+    bit, so the update does not depend on the count."""
+    def one(part: Callable[[], torch.Tensor]):
+        loss = part()
+        return loss.item(), torch.autograd.grad(loss, params, allow_unused=True)
+    if threads <= 1 or len(parts) <= 1:
+        return [one(part) for part in parts]
+    with ThreadPoolExecutor(min(threads, len(parts))) as pool:
+        return list(pool.map(one, parts))
