@@ -18,7 +18,7 @@ so on an idle 2-core machine it has more than a core, and its wall time stands. 
 `bench_training.recipe_estimate` (teacher rollouts, aux steps, ITA and CTR steps, one validation
 of each phase and a checkpoint write). TR-POMDP and AtRL-TR: DQN steps at indices spread over
 the recipe (epsilon decays over the steps; the replay fills as it would), one validation and one
-checkpoint write (with its replay buffers). A full recipe takes 14 to 30 minutes of a core,
+checkpoint write (with its replay buffers). A full recipe takes 12 to 30 minutes,
 which this does not spend. `--repeats N` times each recipe N times, a fresh trainer each, and
 judges the median (each repeat times the next ITA and CTR steps, other scenarios; a recipe
 near its goal can read on either side of it in single runs).
@@ -216,9 +216,10 @@ def main() -> None:
                        f"{how}")
     if summary:
         print(f"\nTraining time per recipe, minutes, on this machine ({os.cpu_count()} cores, "
-              f"load average {os.getloadavg()[0]:.1f}; each recipe on its own torch `threads`). "
-              "wall: as timed (a finished folder's: its measured training time); CPU: this "
-              "process's CPU time, what an idle core takes; the verdict is on CPU where timed:")
+              f"load average {os.getloadavg()[0]:.1f}; each recipe on its own `threads`). "
+              "wall: as timed (a finished folder's: its measured training time); CPU: the wall "
+              "time times this process's share of a core where below one, what an idle machine "
+              "takes; the verdict is on CPU where timed:")
         print(f"  {'recipe':12s} {'wall':>6s} {'CPU':>6s}   goal     verdict    how")
         print("\n".join("  " + s for s in summary))
     if args.weights:
