@@ -387,10 +387,28 @@ def test_an_update_device_torch_cannot_use_is_refused_before_any_work():
 def test_an_ita_update_on_several_threads_is_bit_for_bit_the_one_thread_update():
     # `threads` takes the update's parts' gradients side by side: the weights and the Adam
     # state after the step are those of one thread, and of backward() on each part in turn
+    previous = torch.get_num_threads()
+    torch.set_num_threads(1)             # as the trainer's run sets it
+    try:
+        states, losses = _one_ita_step_each((1, 3, 0))
+    finally:
+        torch.set_num_threads(previous)
+    assert losses[0] == losses[1] == losses[2]
+    for other in states[1:]:
+        assert other.keys() == states[0].keys()
+        for key, value in states[0].items():
+            assert torch.equal(other[key], value), key
+    # the step moved the weights (an update that did nothing would pass the above)
+    fresh = build_trainer(session("ata_hrl.batch_size=4")).net.state_dict()
+    assert any(not torch.equal(fresh[k], states[0][k]) for k in fresh)
+
+
+def _one_ita_step_each(counts):
+    """For each thread count (0: backward() on each part in turn), one ITA step of a fresh
+    trainer on the same rollout: its network and Adam state, and its loss."""
     from ata.plugins.ata_hrl.phases.policy import rewards
-    torch.set_num_threads(1)
     states, losses = [], []
-    for threads in (1, 3, 0):
+    for threads in counts:
         tr = build_trainer(session("ata_hrl.batch_size=4", f"ata_hrl.threads={max(threads, 1)}"))
         tr.ita.start()
         record, rec = tr.rollout(tr.mission_of("custom", 7), np.repeat(np.arange(4), 2), "ita",
@@ -411,11 +429,4 @@ def test_an_ita_update_on_several_threads_is_bit_for_bit_the_one_thread_update()
         states.append({**tr.net.state_dict(),
                        **{f"opt{i}": v["exp_avg_sq"] for i, v in tr.opt.state_dict()["state"]
                           .items()}})
-    assert losses[0] == losses[1] == losses[2]
-    for other in states[1:]:
-        assert other.keys() == states[0].keys()
-        for key, value in states[0].items():
-            assert torch.equal(other[key], value), key
-    # the step moved the weights (an update that did nothing would pass the above)
-    fresh = build_trainer(session("ata_hrl.batch_size=4")).net.state_dict()
-    assert any(not torch.equal(fresh[k], states[0][k]) for k in fresh)
+    return states, losses
