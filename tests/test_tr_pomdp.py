@@ -1,5 +1,6 @@
 """TR-POMDP and AtRL-TR: partial observations, joint actions, DQN training, checkpoints."""
 
+import csv
 import tomllib
 
 import numpy as np
@@ -204,6 +205,20 @@ def test_the_agents_learn(tmp_path):
     fresh = dqn.AgentNets(learner.cfg)
     assert all(not torch.equal(a, b) for a, b in zip(fresh.parameters(),
                                                        learner.nets.parameters()))
+
+
+@pytest.mark.parametrize("select, column", [("drawn", "eval_score"),
+                                             ("expected", "eval_expected")])
+def test_best_pt_follows_the_validation_score_select_names(tmp_path, select, column):
+    # every step validated: both scores logged, best.pt the step of the best one `select` names
+    train(session(f"tr_pomdp.select='{select}'", "tr_pomdp.steps=4"), tmp_path)
+    rows = [r for r in csv.DictReader((tmp_path / "log.csv").open()) if r["eval_score"]]
+    assert [r["step"] for r in rows] == ["1", "2", "3", "4"]
+    scores = {k: [float(r[k]) for r in rows] for k in ("eval_score", "eval_expected")}
+    assert scores["eval_score"] != scores["eval_expected"]
+    best = read_checkpoint(tmp_path / "best.pt", "tr_pomdp")
+    assert best["best_eval"] == pytest.approx(max(scores[column]), abs=0.006)
+    assert best["counters"]["dqn"] == 1 + int(np.argmax(scores[column]))
 
 
 def test_resume_after_kill_matches_an_uninterrupted_run(tmp_path):

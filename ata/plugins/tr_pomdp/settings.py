@@ -60,6 +60,9 @@ class TrainingSettings:
                                   "which a human counts as overloaded")
     eval_every: int = param(50, min=1, help="training: held-out validation every N steps")
     eval_scenarios: int = param(64, min=1, help="training: validation scenarios")
+    select: str = param("drawn", choices=("drawn", "expected"), help="training: the "
+                        "validation score best.pt follows: the points drawn, or the points in "
+                        "expectation over the classification outcomes (steadier)")
     checkpoint_every: int = param(10, min=1, help="training: write checkpoint.pt every N steps")
     threads: int = param(1, min=1, max=256, help="training: torch CPU threads")
 

@@ -36,7 +36,7 @@ from ata.training import (VALIDATION_SEED_OFFSET, CheckpointError, Phase, PhaseL
                           read_checkpoint)
 
 LOG_FIELDS = ["phase", "step", "episodes", "episodes_per_s", "loss", "mean_score", "epsilon",
-              "eval_score", "wall_s"]
+              "eval_score", "eval_expected", "wall_s"]
 KINDS = ("robot", "human")
 
 
@@ -272,7 +272,11 @@ class TRPOMDPTrainer:
                 "epsilon": f"{eps:.3f}"}, t.batch_size
 
     def validate(self) -> tuple[float, dict[str, str]]:
-        """Mean total team performance on held-out validation scenarios, greedy agents."""
+        """Mean team performance on held-out validation scenarios, greedy agents: the points
+        drawn and in expectation; best.pt follows the one `select` names."""
         mission = self.mission.replace(seed=self.t.seed + VALIDATION_SEED_OFFSET)
-        score = float(self.rollout(np.arange(self.t.eval_scenarios), mission, 0.0).total.mean())
-        return score, {"eval_score": f"{score:.2f}"}
+        record = self.rollout(np.arange(self.t.eval_scenarios), mission, 0.0)
+        drawn = float(record.total.mean())
+        expected = float(record.r_expected.sum(1).mean())
+        return (expected if self.t.select == "expected" else drawn,
+                {"eval_score": f"{drawn:.2f}", "eval_expected": f"{expected:.2f}"})
