@@ -32,6 +32,26 @@ HRL_TINY = ["mission.setting='custom'", "mission.humans=3", "mission.robots=4", 
             "ata_hrl.status_hidden=8", "ata_hrl.status_levels=['high']"]
 
 
+def greedy_pair_suite(scenarios: int, other: str) -> str:
+    """A one-cell suite ((a), high, root seed 0) of greedy beside greedy deciding to reallocate
+    at every epoch, named `other`: two quick methods whose rows differ."""
+    return f"""[suite]
+settings = ["a"]
+uncertainty = ["high"]
+scenarios = {scenarios}
+seed = 0
+
+[[method]]
+name = "greedy"
+mission = "builtin:greedy"
+
+[[method]]
+name = "{other}"
+mission = "builtin:greedy"
+set = ["components.condition=always"]
+"""
+
+
 def hrl_session(*extra, plugins=("ctr", "aux")):
     """The ATA-HRL training mission of `plugins` on the tiny team, with `extra` overrides."""
     return load_session(str(training_mission_for(list(plugins))), [*HRL_TINY, *extra])

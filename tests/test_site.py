@@ -20,26 +20,13 @@ from ata.site import REPORTED, REPRODUCED, build_site, tier, verify
 from ata.site.board import build_board
 from ata.site.sources import load_source
 from ata.site.verify import installed_code
+from _support import greedy_pair_suite
 
 ROOT = Path(__file__).resolve().parent.parent
 SHIPPED = ROOT / "docs" / "site"
 IMAGES = (".png",)
 
-SUITE = """[suite]
-settings = ["a"]
-uncertainty = ["high"]
-scenarios = 2
-seed = 0
-
-[[method]]
-name = "greedy"
-mission = "builtin:greedy"
-
-[[method]]
-name = "always"
-mission = "builtin:greedy"
-set = ["components.condition=always"]
-"""
+SUITE = greedy_pair_suite(2, "always")
 
 
 @pytest.fixture(scope="module")

@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 
 from ata.site import build_site
+from _support import greedy_pair_suite
 
 BROWSER = shutil.which("chromium") or shutil.which("chromium-browser") or \
     shutil.which("google-chrome")
@@ -33,21 +34,7 @@ else:
                                     "(pip install -e '.[test]')")
 pytestmark = pytest.mark.skipif(MISSING is not None, reason=str(MISSING))
 
-SUITE = """[suite]
-settings = ["a"]
-uncertainty = ["high"]
-scenarios = 3
-seed = 0
-
-[[method]]
-name = "greedy"
-mission = "builtin:greedy"
-
-[[method]]
-name = "mine"
-mission = "builtin:greedy"
-set = ["components.condition=always"]
-"""
+SUITE = greedy_pair_suite(3, "mine")
 
 
 @pytest.fixture(scope="module")
