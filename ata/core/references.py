@@ -22,6 +22,7 @@ from __future__ import annotations
 import ast
 import hashlib
 import importlib
+import importlib.machinery
 import importlib.util
 import inspect
 import sys
@@ -237,13 +238,32 @@ def _module_file(name: str) -> tuple[Path | None, bool]:
     module = sys.modules.get(name)
     file, package = getattr(module, "__file__", None), hasattr(module, "__path__")
     if module is None:
-        try:
-            spec = importlib.util.find_spec(name)
-        except (ImportError, ValueError, AttributeError):
-            spec = None
+        spec = _find_spec(name)
         file = spec.origin if spec is not None and spec.has_location else None
         package = bool(spec is not None and spec.submodule_search_locations is not None)
     return (Path(file), package) if file and file.endswith(".py") else (None, False)
+
+
+def _find_spec(name: str) -> Any:
+    """The spec of module `name`, found without importing anything (``importlib.util.find_spec``
+    of a dotted name imports its parent: a digest would import, say, torch along with the
+    module a function imports it in)."""
+    head, _, rest = name.partition(".")
+    try:
+        spec = importlib.util.find_spec(head)
+        for part in rest.split(".") if rest else ():
+            head = f"{head}.{part}"
+            loaded = sys.modules.get(head)
+            if loaded is not None:
+                spec = getattr(loaded, "__spec__", None)
+                continue
+            paths = getattr(spec, "submodule_search_locations", None) if spec else None
+            if not paths:
+                return None
+            spec = importlib.machinery.PathFinder.find_spec(head, list(paths))
+    except (ImportError, ValueError, AttributeError):
+        return None
+    return spec
 
 
 def _imported(path: Path, name: str, package: bool) -> list[str]:
