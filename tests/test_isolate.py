@@ -20,7 +20,7 @@ from ata.core.errors import ContractError, MissionError
 from ata.isolation import Isolated, require_sandbox
 from ata.isolation import process as isolate
 from ata.session import load_session
-from ata.experiment.units import run_batch, torch_one_thread
+from ata.experiment.units import run_batch, one_thread
 from ata.runtime import frames, sandbox
 
 NO_SANDBOX = sandbox.unavailable()
@@ -58,7 +58,7 @@ def differ(a: dict, b: dict) -> bool:
 
 
 def both(session, iso: Isolated, ids=np.arange(4)) -> tuple[dict, dict]:
-    with torch_one_thread():
+    with one_thread():
         inside = run_batch(session.mission, session.registry, ids)
         apart = run_batch(session.mission, session.registry, ids, backend=iso)
     return inside, apart

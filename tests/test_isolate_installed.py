@@ -20,7 +20,7 @@ from ata.core.errors import MissionError
 from ata.isolation import require_sandbox
 from ata.isolation import process as isolate
 from ata.session import load_session
-from ata.experiment.units import Unit, run_batch, run_unit, torch_one_thread
+from ata.experiment.units import Unit, run_batch, run_unit, one_thread
 from ata.runtime import sandbox
 
 NO_SANDBOX = sandbox.unavailable()
@@ -94,14 +94,14 @@ def test_the_host_never_imports_an_installed_method(installed):
     # its settings were validated apart, and the host records them as any component's
     assert f"[{name}]\nshift = 2" in session.mission.to_toml()
     assert session.registry.get("policy", name, "").dist == f"{module} 0.1"
-    with torch_one_thread():
+    with one_thread():
         apart = run_batch(session.mission, session.registry, np.arange(3), backend=iso)
         # a worker process stands the method in the same way, importing none of it
         unit = run_unit(Unit(0, session.mission, np.arange(3), parallel=True, backend=iso))
     assert module not in sys.modules and marker not in os.environ
     inside_session = load_session("builtin:greedy", over)
     assert module in sys.modules and marker in os.environ    # the check above can fail
-    with torch_one_thread():
+    with one_thread():
         inside = run_batch(inside_session.mission, inside_session.registry, np.arange(3))
     skip = ("warnings", "wall_s", f"m:{isolate.TIMEOUT_COLUMN}")
     keys = sorted(k for k in inside if k not in skip)
@@ -124,7 +124,7 @@ def test_a_built_in_method_beside_an_installed_package_never_imports_it(installe
     module, name, marker = installed
     iso = require_sandbox(60)
     session = load_session("builtin:greedy", SHORT, backend=iso)
-    with torch_one_thread():
+    with one_thread():
         run_unit(Unit(0, session.mission, np.arange(3), parallel=True, backend=iso))
     assert module not in sys.modules and marker not in os.environ
 
@@ -172,7 +172,7 @@ def test_a_method_in_a_file_runs_apart_and_the_host_never_loads_it(tmp_path, mon
     digest = hashlib.sha256(policy.read_bytes()).hexdigest()
     assert f'sha256 = "{digest}"' in resolved
     assert session.code()["policy nearest_capable"] == digest
-    with torch_one_thread():
+    with one_thread():
         apart = run_batch(session.mission, session.registry, np.arange(3), backend=iso)
         unit = run_unit(Unit(0, session.mission, np.arange(3), parallel=True, backend=iso))
     assert marker not in os.environ
@@ -183,7 +183,7 @@ def test_a_method_in_a_file_runs_apart_and_the_host_never_loads_it(tmp_path, mon
     assert load_session(str(again), backend=iso).mission.to_toml() == resolved
     inside_session = load_session(str(mission), SHORT + ["nearest_capable.any_type=true"])
     assert marker in os.environ                     # the check above can fail
-    with torch_one_thread():
+    with one_thread():
         inside = run_batch(inside_session.mission, inside_session.registry, np.arange(3))
     skip = ("warnings", "wall_s", f"m:{isolate.TIMEOUT_COLUMN}")
     for key in (k for k in inside if k not in skip):

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from typing import Any, Callable, Iterator
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ata.backend import IN_PROCESS, Backend
 from ata.core.mission import Mission
@@ -51,19 +52,20 @@ def one_worker(mission: Mission) -> Mission:
 
 
 @contextlib.contextmanager
-def torch_one_thread() -> Iterator[None]:
-    """One torch thread while a unit runs (when torch is loaded), on every executor alike, so
-    that no reduction order depends on where a unit ran."""
+def one_thread() -> Iterator[None]:
+    """One thread for torch (when it is loaded) and for numpy's BLAS while a unit runs, on every
+    executor alike: no reduction order depends on where a unit ran, and a unit's matrix
+    products do not spin threads beside the other workers."""
     torch = sys.modules.get("torch")
-    if torch is None:
-        yield
-        return
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
+    previous = torch.get_num_threads() if torch is not None else None
+    if torch is not None:
+        torch.set_num_threads(1)
     try:
-        yield
+        with threadpool_limits(1, user_api="blas"):
+            yield
     finally:
-        torch.set_num_threads(previous)
+        if torch is not None:
+            torch.set_num_threads(previous)
 
 
 def scenario_ids(mission: Mission) -> np.ndarray:
@@ -131,7 +133,7 @@ def run_unit(unit: Unit, on_epoch: Callable[[int], None] | None = None) -> dict[
     mission = one_worker(unit.mission) if unit.parallel else unit.mission
     registry = unit.registry if unit.registry is not None else \
         unit.backend.worker_registry(mission)
-    with torch_one_thread(), run_cache(unit.cache):
+    with one_thread(), run_cache(unit.cache):
         out = run_batch(mission, registry, unit.ids, on_epoch=on_epoch, backend=unit.backend)
     out.setdefault("wall_s", time.perf_counter() - t0)
     return out

@@ -33,7 +33,8 @@ SYSTEM_FILES = ("/etc/ld.so.cache", "/etc/ld.so.conf", "/etc/ld.so.conf.d", "/et
 """The few files of /etc that the dynamic linker and the C library read; nothing else of /etc
 (no passwd, hosts or resolver: the sandbox has no network and no users to look up)."""
 ENV = {"PYTHONHASHSEED": "0", "HOME": "/tmp", "PATH": "/usr/bin:/bin", "LANG": "C.UTF-8",
-       "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "NUMBA_CACHE_DIR": "/tmp/numba"}
+       "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
+       "NUMBA_CACHE_DIR": "/tmp/numba"}
 """The child's whole environment (bwrap --clearenv first): what Python needs, one thread per
 math library (as a unit in the host runs), numba's cache in the child's own tmpfs (the
 package is read-only there; `ata.runtime.decider` copies the host's cached loops in), and

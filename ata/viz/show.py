@@ -18,7 +18,7 @@ from ata.core import mission as mission_mod
 from ata.core.errors import MissionError
 from ata.session import BUILTIN_MISSION, Session, load_session
 from ata.runtime.folders import named_folder, prepare_out_dir, writing
-from ata.experiment.units import scenario_ids, torch_one_thread
+from ata.experiment.units import scenario_ids, one_thread
 from ata.viz import draw
 from ata.viz.animate import write_animation
 from ata.viz.record import Episode, replay
@@ -108,7 +108,7 @@ def show(target: str | None, scenario: int | None, overrides: list[str] | None =
     out = prepare_out_dir(out, kind="show")   # unwritable, another's: say so before the replay
     # one torch thread, as a unit of the run has: the same reduction order, and no threads
     # waiting on each other for a batch of one (13 s instead of 0.7 s on a busy 2-core machine)
-    with torch_one_thread():
+    with one_thread():
         episode = replay(m, session.registry, scenario)
     with writing(out):
         written = draw.write_figures(episode, out)
