@@ -139,8 +139,10 @@ def training_mission_for(plugins: list[str]) -> Path:
     found = {}
     for path in TRAINING_MISSIONS:
         raw = mission_mod.read_toml(path)
-        found[closure(mission_mod.requested_plugins(raw)
-                      + providers(mission_mod.named_components(raw)))] = path
+        # what --plugins can name: the optional plugins (a trainer's own plugin, which the
+        # mission's trainer loads, is none of them)
+        named = mission_mod.requested_plugins(raw) + providers(mission_mod.named_components(raw))
+        found[closure([p for p in named if p in OPTIONAL_PLUGINS])] = path
     if wanted not in found:
         known = "; ".join(",".join(sorted(k)) for k in found)
         raise MissionError("--plugins", None, f"no built-in training mission for "

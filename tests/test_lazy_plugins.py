@@ -44,7 +44,7 @@ def rows(session: Session, workers: int = 1) -> list[dict]:
 def test_ata_declares_the_components_of_its_optional_plugins():
     assert declared_components() == {
         ("policy", "attention"): "ata.plugins.ata_hrl.ita",
-        ("trainer", "ata_hrl"): "ata.plugins.ata_hrl.ita",
+        ("trainer", "ata_hrl"): "ata.plugins.ata_hrl.train",
         ("condition", "ctr"): "ata.plugins.ata_hrl.ctr",
         ("policy", "ctr"): "ata.plugins.ata_hrl.ctr",
         ("reconstructor", "aux"): "ata.plugins.ata_hrl.aux",
@@ -152,7 +152,7 @@ REGISTERED_POLICIES = "attention, ctr, greedy, keep, milp, random, tr_pomdp"
      "did you mean 'attention'?"),
     ("components.initial='ita'",
      f"unknown policy 'ita'; registered: {REGISTERED_POLICIES} (see: ata plugins); 'ita' is an "
-     "optional plugin, not a component: it provides ata_hrl, attention"),
+     "optional plugin, not a component: it provides attention"),
     ("components.initial='aux'",
      f"unknown policy 'aux'; registered: {REGISTERED_POLICIES} (see: ata plugins); 'aux' is "
      "registered as a reconstructor, which goes in another [components] slot"),

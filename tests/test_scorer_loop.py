@@ -38,7 +38,8 @@ def _both(kind: str, net, emb, cand, feats, prior, mask, robot, task, residual=T
         want = scorer(torch.as_tensor(feats), cand, ctx,
                       torch.as_tensor(prior, dtype=torch.float32), torch.as_tensor(mask),
                       residual).numpy()
-    w = scorer_loop.weights(scorer)
+    w = scorer_loop.weights({f"s.{k}": v.detach().numpy()
+                             for k, v in scorer.state_dict().items()}, "s")
     E, N, d = cand.shape
     hid = scorer_loop.project(np.ascontiguousarray(cand.detach().numpy()).reshape(E * N, d),
                               w.cand_w).reshape(E, N, -1)

@@ -12,6 +12,7 @@ import pytest
 import torch
 
 from ata.plugins.ata_hrl import decode as D
+from ata.plugins.ata_hrl import logprob
 from ata.plugins.ata_hrl.checkpoint import load_net
 from ata.plugins.ata_hrl.inputs import StepInputs
 from ata.plugins.ata_hrl.network import FEATURES, KINDS, ATAHRLNet, step_context
@@ -82,7 +83,7 @@ def test_the_update_scores_the_rows_that_count_as_the_dense_forward_does(residua
     net = net.ita
     emb, trace = _trace(net, rng)
     got, want = [], []
-    for fn, out in ((lambda: D.trace_log_prob(net, emb, trace, residual), got),
+    for fn, out in ((lambda: logprob.trace_log_prob(net, emb, trace, residual), got),
                     (lambda: _dense(net, emb, trace, residual), want)):
         net.zero_grad()
         logp, ent = fn()

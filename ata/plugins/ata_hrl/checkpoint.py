@@ -1,8 +1,11 @@
-"""ATA-HRL's checkpoints: the network a checkpoint describes, cached once per process.
+"""ATA-HRL's checkpoints: the network a checkpoint describes, cached once per process: the
+torch module a trainer goes on from (`load_net`), or the numpy twin that decides
+(`load_infer`, read without torch).
 
-Reading is ``ata.training.read_checkpoint`` (``torch.load(..., weights_only=True)``): a file that
-is missing, truncated, not a checkpoint, of another method (a TR-POMDP checkpoint), of another
-format or of another architecture is refused with a message naming it.
+Reading is ``ata.training.read_checkpoint`` (``torch.load(..., weights_only=True)``, or its
+torch-free reader of the same files): a file that is missing, truncated, not a checkpoint, of
+another method (a TR-POMDP checkpoint), of another format or of another architecture is refused
+with a message naming it.
 """
 
 from __future__ import annotations
@@ -10,6 +13,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from ata.plugins.ata_hrl.arch import NetConfig, expected_shapes
+from ata.plugins.ata_hrl.infer import InferenceNet
 from ata.training import (CheckpointError, load_cached, read_checkpoint, resolve, trained_on,
                           trained_parts)
 
@@ -21,7 +26,8 @@ every network (``cond.rule.weight``, ``.bias`` and ``.on``: zero and off where n
 fitted), and the config holds the architecture alone."""
 
 __all__ = ["KIND", "FORMAT", "CheckpointError", "read_checkpoint", "check_format",
-           "net_from_checkpoint", "load_net", "trained_ranges"]
+           "net_from_checkpoint", "load_net", "infer_from_checkpoint", "load_infer",
+           "trained_ranges"]
 
 
 def check_format(data: dict[str, Any], path: str | Path) -> None:
@@ -32,9 +38,8 @@ def check_format(data: dict[str, Any], path: str | Path) -> None:
                                     "`ata train`)")
 
 
-def net_from_checkpoint(data: dict[str, Any], path: str | Path, expect=None):
-    """Build the ATA-HRL network a checkpoint describes and load its weights."""
-    from ata.plugins.ata_hrl.network import ATAHRLNet, NetConfig   # on use: torch
+def _config(data: dict[str, Any], path: str | Path, expect=None) -> NetConfig:
+    """The architecture a checkpoint records, checked."""
     if "model" not in data or "config" not in data:
         raise CheckpointError(path, "holds no ATA-HRL network (no model or config)")
     check_format(data, path)
@@ -45,6 +50,13 @@ def net_from_checkpoint(data: dict[str, Any], path: str | Path, expect=None):
     if expect is not None and cfg != expect:
         raise CheckpointError(path, f"architecture {cfg.as_dict()} does not match the "
                                     f"training's {expect.as_dict()}")
+    return cfg
+
+
+def net_from_checkpoint(data: dict[str, Any], path: str | Path, expect=None):
+    """Build the ATA-HRL network (torch) a checkpoint describes and load its weights."""
+    from ata.plugins.ata_hrl.network import ATAHRLNet   # on use: torch
+    cfg = _config(data, path, expect)
     net = ATAHRLNet(cfg)
     try:
         net.load_state_dict(data["model"])
@@ -54,9 +66,31 @@ def net_from_checkpoint(data: dict[str, Any], path: str | Path, expect=None):
     return net
 
 
+def infer_from_checkpoint(data: dict[str, Any], path: str | Path) -> InferenceNet:
+    """The numpy twin of the network a checkpoint describes (`data` read with
+    ``arrays=True``); its weights must be those of the architecture, entry by entry."""
+    cfg = _config(data, path)
+    state, want = data["model"], expected_shapes(cfg)
+    missing = [k for k in want if k not in state]
+    extra = [k for k in state if k not in want]
+    wrong = [f"{k} {tuple(state[k].shape)} for {want[k]}" for k in want
+             if k in state and tuple(state[k].shape) != want[k]]
+    for what, names in (("missing", missing), ("unexpected", extra), ("size mismatch", wrong)):
+        if names:
+            raise CheckpointError(path, f"weights do not fit the architecture: {what}: "
+                                        f"{', '.join(names[:3])}"[:300])
+    return InferenceNet(state, cfg)
+
+
 def load_net(spec: str):
-    """The ATA-HRL network of a checkpoint, in evaluation mode, cached per process."""
+    """The ATA-HRL network of a checkpoint (torch), in evaluation mode, cached per process."""
     return load_cached(spec, net_from_checkpoint, KIND)
+
+
+def load_infer(spec: str) -> InferenceNet:
+    """The numpy twin of a checkpoint's network (read without torch), cached per process:
+    what the components decide with."""
+    return load_cached(spec, infer_from_checkpoint, KIND, arrays=True)
 
 
 def trained_ranges(spec: str) -> list[tuple[int, int, int]]:

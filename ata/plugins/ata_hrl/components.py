@@ -15,19 +15,19 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
-import torch
 
 from ata import hookimpl
 from ata.core.settings import param
 from ata.core.state import Allocation, DecisionContext, Observation, SimState
 from ata.plugins.ata_hrl import decode as D
-from ata.plugins.ata_hrl.checkpoint import load_net, require_trained, trained_ranges
+from ata.plugins.ata_hrl.arch import COND_FEATURES
+from ata.plugins.ata_hrl.checkpoint import load_infer, require_trained, trained_ranges
 from ata.training import weights_for
 from ata.plugins.ata_hrl.decoder import Decoder
 from ata.plugins.ata_hrl.inputs import DecodeSettings
 from ata.plugins.ata_hrl.features import (GROUPS, inherent_features, seen_state, state_column,
-                                          state_features, to_tensors)
-from ata.plugins.ata_hrl.network import ATAHRLNet, COND_FEATURES, encode_once
+                                          state_features)
+from ata.plugins.ata_hrl.infer import InferenceNet
 from ata.plugins.ata_hrl.status import StatusTracker, guesses as status_guesses
 from ata.model.fatigue import FatigueBelief
 from ata.model.events import EventWatch
@@ -119,12 +119,13 @@ class LearnedComponent:
         learned: bool = param(True, help="false: decide by the greedy prior alone (the learned "
                               "part switched off)")
 
-    def __init__(self, settings: "LearnedComponent.Settings", mission: Any,
-                 net: ATAHRLNet | None = None):
+    def __init__(self, settings: "LearnedComponent.Settings", mission: Any, net: Any = None):
         # settings made without a mission's validation (a notebook's) name a family alone
         self.settings = settings.for_team(mission.settings) if mission is not None else settings
         self.from_checkpoint = net is None
-        self.net = net if net is not None else load_net(settings.checkpoint)
+        # decisions in numpy: the checkpoint's weights read without torch, or a trainer's live
+        # network (``network.ATAHRLNet``) as it is when the component is made
+        self.net = InferenceNet.of(net) if net is not None else load_infer(settings.checkpoint)
         self.recorder: Recorder | None = None
         self.sampler: D.Chooser | None = None
 
@@ -142,9 +143,10 @@ class LearnedComponent:
         return 4 * batch * (2 * cfg.heads * tokens * tokens + 8 * cfg.d_model * tokens
                             + 4 * s.tasks * (s.humans + s.robots + 1))
 
-    def train_with(self, net: ATAHRLNet, recorder: Recorder, sampler: D.Chooser) -> None:
-        """Decide with a trainer's live network, sampling with its sampler, and record."""
-        self.net, self.recorder, self.sampler = net, recorder, sampler
+    def train_with(self, net: Any, recorder: Recorder, sampler: D.Chooser) -> None:
+        """Decide with a trainer's live network (its weights as they are now), sampling with its
+        sampler, and record."""
+        self.net, self.recorder, self.sampler = InferenceNet.of(net), recorder, sampler
 
     def chooser(self, ctx: DecisionContext, stream: str) -> D.Chooser:
         if self.sampler is not None:
@@ -171,8 +173,7 @@ class AttentionITA(LearnedComponent):
         if self.recorder is not None:
             self.recorder.inherent = feats
             trace = self.recorder.ita = D.DecodeTrace()
-        with torch.no_grad():
-            emb = encode_once(self.net.ita.encoder, feats)
+        emb = self.net.ita.encode(feats)
         return D.decode(dec, self.net.ita, emb, self.chooser(ctx, "attention"),
                         residual=self.settings.learned, trace=trace)
 
@@ -203,13 +204,12 @@ class CTRPolicy(LearnedComponent):
                                      "per-POI reallocation alone, about a third of the run "
                                      "time, fewer points (experiments/full_replan)")
 
-    def __init__(self, settings: "CTRPolicy.Settings", mission: Any,
-                 net: ATAHRLNet | None = None):
+    def __init__(self, settings: "CTRPolicy.Settings", mission: Any, net: Any = None):
         super().__init__(settings, mission, net)
-        self.hidden: torch.Tensor | None = None
+        self.hidden: np.ndarray | None = None
         self.epoch = -1
-        self.emb_i: dict[str, torch.Tensor] | None = None     # the encoder's of I, once
-        self.emb: dict[str, torch.Tensor] | None = None
+        self.emb_i: dict[str, np.ndarray] | None = None     # the encoder's of I, once
+        self.emb: dict[str, np.ndarray] | None = None
         self.raw: dict[str, np.ndarray] | None = None
         self.seen: dict[str, np.ndarray] | None = None
         self.events = EventWatch()     # robots newly down, POIs newly changed (pi_C's prior)
@@ -231,12 +231,10 @@ class CTRPolicy(LearnedComponent):
             inherent = inherent_features(ctx.inherent)
             if self.recorder is not None:
                 self.recorder.inherent = inherent
-            with torch.no_grad():
-                self.emb_i = encode_once(self.net.tr.encoder, inherent)
+            self.emb_i = self.net.tr.encode(inherent)
         self.raw = state_features(ctx.observed)
         self.seen = seen_state(ctx)
-        with torch.no_grad():
-            self.emb = self.net.tr.embed(self.emb_i, to_tensors(self.raw), to_tensors(self.seen))
+        self.emb = self.net.tr.embed(self.emb_i, self.raw, self.seen)
         self.cond_feats, self.cond_prior = self._condition_features(ctx)
         if self.recorder is not None:
             rec = self.recorder
@@ -278,14 +276,12 @@ class CTRPolicy(LearnedComponent):
         self._observe(ctx)
         B = ctx.reallocatable.shape[0]
         if self.hidden is None:
-            self.hidden = torch.zeros(B, self.net.cfg.d_model)
-        pooled = torch.cat([self.emb[g] for g in GROUPS], 1).mean(1)
-        with torch.no_grad():
-            logit, self.hidden = self.net.cond(pooled, torch.as_tensor(self.cond_feats),
-                                               torch.as_tensor(self.cond_prior), self.hidden,
-                                               residual=self.settings.learned)
-        decide = self.chooser(ctx, "ctr.condition")("cond", torch.stack(
-            [torch.zeros_like(logit), logit], -1)).astype(bool)
+            self.hidden = np.zeros((B, self.net.cfg.d_model), np.float32)
+        pooled = np.concatenate([self.emb[g] for g in GROUPS], 1).mean(1)
+        logit, self.hidden = self.net.cond(pooled, self.cond_feats, self.cond_prior,
+                                           self.hidden, residual=self.settings.learned)
+        decide = self.chooser(ctx, "ctr.condition")("cond", np.stack(
+            [np.zeros_like(logit), logit], -1)).astype(bool)
         if self.flip_at is not None:
             decide ^= self.flip_at == ctx.epoch
         if self.recorder is not None:
@@ -323,7 +319,7 @@ class CTRPolicy(LearnedComponent):
         mine = np.arange(E)
         dec = Decoder(start.take(plans), sub.reallocatable[plans], fatigue[plans], util[plans],
                       decode_settings(ctx), previous=sub.previous.take(plans))
-        emb_plans = {g: v[torch.from_numpy(plans)] for g, v in emb.items()}
+        emb_plans = {g: v[plans] for g, v in emb.items()}
         # the heuristic's choice, the prior: greedy weighs keeping, repairing and re-planning
         self.greedy.planned_attrs = self.greedy_attrs[rows]
         heuristic = self.greedy.reallocate(sub, np.ones(rows.size, bool))
@@ -396,15 +392,16 @@ class AuxReconstructor:
         guesses: list[str] = param(["captured", "committed"], choices=("captured", "committed"),
                                    help="which of the status head's guesses reach the policies")
 
-    def __init__(self, settings: "AuxReconstructor.Settings", mission: Any,
-                 net: ATAHRLNet | None = None, guess: bool = True):
+    def __init__(self, settings: "AuxReconstructor.Settings", mission: Any, net: Any = None,
+                 guess: bool = True):
         settings = settings if settings is not None else self.Settings()
         self.settings = settings.for_team(mission.settings) if mission is not None else settings
         self.from_checkpoint = net is None       # a trainer's live network reports nothing
         if self.from_checkpoint:
             require_trained(self.settings.checkpoint, "aux", "the aux reconstructor")
-        self.net = net if net is not None else load_net(self.settings.checkpoint)
-        self.hidden: dict[str, torch.Tensor | None] = {"robots": None, "tasks": None}
+        self.net = InferenceNet.of(net) if net is not None else \
+            load_infer(self.settings.checkpoint)
+        self.hidden: dict[str, np.ndarray | None] = {"robots": None, "tasks": None}
         self.tracker = StatusTracker()
         self.guess = guess          # false: the status features only (a trainer's teacher)
         self.status_features: np.ndarray | None = None    # this epoch's (B, P, F), if any
@@ -417,26 +414,25 @@ class AuxReconstructor:
     def ata_reconstruct(self, sim: SimState, obs: Observation, inherent: Observation,
                         out: dict[str, np.ndarray]) -> None:
         feats = state_features(obs)
-        with torch.no_grad():
-            f_obs = torch.tensor(obs["humans"].col("fatigue"), dtype=torch.float32)
-            hours = torch.tensor(obs["humans"].col("working_time"), dtype=torch.float32)
-            cog = torch.tensor(inherent["humans"].col("cognitive"), dtype=torch.float32)
-            if "fatigue" in self.settings.parts:
-                recon, _, _ = self.net.fatigue(f_obs, hours, cog)
-                out["aux_fatigue"] = recon.numpy().astype(np.float64)
-            for group in ("robots", "tasks"):
-                if group not in self.settings.parts:
-                    continue
-                x = torch.as_tensor(feats[group], dtype=torch.float32)
-                B, N, F = x.shape
-                est, self.hidden[group] = self.net.latency[group](x.reshape(B * N, 1, F),
-                                                                  self.hidden[group])
-                out[f"aux_{group}"] = est.reshape(B, N, F).numpy().astype(np.float64)
-            head = getattr(self.net, "status", None)
-            if "status" in self.settings.parts and head is not None:
-                self.status_features = self.tracker.step(sim, obs, inherent)
-                if self.status_features is not None and self.guess:
-                    prob = torch.sigmoid(head(torch.as_tensor(self.status_features))).numpy()
-                    out.update({f"{k}_guess": v for k, v in
-                                status_guesses(self.status_features, prob).items()
-                                if k in self.settings.guesses})
+        f32 = np.float32
+        if "fatigue" in self.settings.parts:
+            recon = self.net.fatigue(obs["humans"].col("fatigue").astype(f32),
+                                     obs["humans"].col("working_time").astype(f32),
+                                     inherent["humans"].col("cognitive").astype(f32))
+            out["aux_fatigue"] = recon.astype(np.float64)
+        for group in ("robots", "tasks"):
+            if group not in self.settings.parts:
+                continue
+            x = feats[group].astype(f32)
+            B, N, F = x.shape
+            est, self.hidden[group] = self.net.latency(group, x.reshape(B * N, F),
+                                                       self.hidden[group])
+            out[f"aux_{group}"] = est.reshape(B, N, F).astype(np.float64)
+        if "status" in self.settings.parts and self.net.has_status:
+            self.status_features = self.tracker.step(sim, obs, inherent)
+            if self.status_features is not None and self.guess:
+                logits = self.net.status(self.status_features)
+                prob = (1.0 / (1.0 + np.exp(-logits.astype(np.float64)))).astype(f32)
+                out.update({f"{k}_guess": v for k, v in
+                            status_guesses(self.status_features, prob).items()
+                            if k in self.settings.guesses})

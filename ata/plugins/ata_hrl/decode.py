@@ -1,5 +1,6 @@
 """Running the decoder with a network: choose step by step (mode, sample or the prior alone),
-and record what a training update needs to recompute each choice's log-probability."""
+and record what a training update needs to recompute each choice's log-probability
+(``logprob``). The network is ``infer``'s, in numpy: deciding needs no torch."""
 
 from __future__ import annotations
 
@@ -7,31 +8,21 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-import torch
 
 from ata.core.state import Allocation
 from ata.plugins.ata_hrl import fused, scorer_loop
 from ata.plugins.ata_hrl.decoder import Decoder
 from ata.plugins.ata_hrl.inputs import StepInputs
-from ata.plugins.ata_hrl.network import KINDS, NEG, AllocationNet, step_context
+from ata.plugins.ata_hrl.arch import KINDS
+from ata.plugins.ata_hrl.infer import AllocationPart
 
-Chooser = Callable[[str, torch.Tensor], np.ndarray]
+Chooser = Callable[[str, np.ndarray], np.ndarray]
 """(kind, logits (E, N)) -> chosen index per episode (E,)."""
 
 
-def argmax_chooser(kind: str, logits: torch.Tensor) -> np.ndarray:
-    # numpy's argmax, as torch's the first of equal maxima, without torch's per-call cost
-    return logits.detach().numpy().argmax(-1)
-
-
-def torch_sampler(generator: torch.Generator) -> Chooser:
-    """Sample every choice from the softmax of its logits with torch's generator (training)."""
-
-    def choose(kind: str, logits: torch.Tensor) -> np.ndarray:
-        u = torch.rand(logits.shape, generator=generator).clamp(1e-12, 1 - 1e-12)
-        return (logits - torch.log(-torch.log(u))).argmax(-1).numpy()
-
-    return choose
+def argmax_chooser(kind: str, logits: np.ndarray) -> np.ndarray:
+    # numpy's argmax: the first of equal maxima
+    return logits.argmax(-1)
 
 
 def stream_sampler(uniform: Callable[[str, int, tuple], np.ndarray]) -> Chooser:
@@ -39,12 +30,12 @@ def stream_sampler(uniform: Callable[[str, int, tuple], np.ndarray]) -> Chooser:
     scenario's choices do not depend on its batch. `uniform(name, counter, shape)`."""
     counter = {"n": 0}
 
-    def choose(kind: str, logits: torch.Tensor) -> np.ndarray:
+    def choose(kind: str, logits: np.ndarray) -> np.ndarray:
         counter["n"] += 1
         u = np.clip(uniform(f"ata_hrl.{kind}", counter["n"], tuple(logits.shape[1:])),
                     1e-12, 1 - 1e-12)
-        g = torch.as_tensor(-np.log(-np.log(u)), dtype=logits.dtype)
-        return (logits + g).argmax(-1).numpy()
+        g = (-np.log(-np.log(u))).astype(logits.dtype)
+        return (logits + g).argmax(-1)
 
     return choose
 
@@ -105,43 +96,40 @@ SHRINK = 0.75
 of its working set is (a finished episode's choices are masked: dropping it changes none)."""
 
 
-def decode(dec: Decoder, net: AllocationNet, emb: dict[str, torch.Tensor], choose: Chooser,
+def decode(dec: Decoder, net: AllocationPart, emb: dict[str, np.ndarray], choose: Chooser,
            *, residual: bool = True, trace: DecodeTrace | None = None) -> Allocation:
     """Decode every POI left in `dec` with the network's scorers (no gradient). Without a
     trace, and taking the mode, the whole decode runs compiled (`fused`) where the fatigue
     projections are of one curve, else the steps work on the episodes still deciding alone."""
     root, rows_in_root = dec, np.arange(dec.E)
     shrink = trace is None and choose is argmax_chooser
-    # inference mode: nothing decoded here is differentiated (a trainer recomputes the log-
-    # probabilities from the trace), and torch skips its autograd bookkeeping per call
-    with torch.inference_mode():
-        steps = _Steps(net, emb, choose, residual, trace)
-        if shrink and fused.fits(dec):
-            # the mode, nothing recorded: the whole decode in one compiled loop
-            fused.decode_mode(dec, steps.weights, steps.tokens["tasks"],
-                              steps.tokens["robots"], steps.cand_hidden, residual)
-            return dec.finish()
-        while True:
+    steps = _Steps(net, emb, choose, residual, trace)
+    if shrink and fused.fits(dec):
+        # the mode, nothing recorded: the whole decode in one compiled loop
+        fused.decode_mode(dec, steps.weights, steps.tokens["tasks"], steps.tokens["robots"],
+                          steps.cand_hidden, residual)
+        return dec.finish()
+    while True:
+        pi = dec.poi_inputs()
+        active = pi.active
+        n_active = int(active.sum())
+        if n_active == 0:
+            break
+        if shrink and n_active <= SHRINK * dec.E:
+            keep = np.flatnonzero(active)
+            dec.put(root, rows_in_root)
+            dec, rows_in_root = dec.take(keep), rows_in_root[keep]
+            steps = steps.take(keep)
             pi = dec.poi_inputs()
             active = pi.active
-            n_active = int(active.sum())
-            if n_active == 0:
-                break
-            if shrink and n_active <= SHRINK * dec.E:
-                keep = np.flatnonzero(active)
-                dec.put(root, rows_in_root)
-                dec, rows_in_root = dec.take(keep), rows_in_root[keep]
-                steps = steps.take(keep)
-                pi = dec.poi_inputs()
-                active = pi.active
-            p = steps.pick("poi", pi, active, dec.r_ff, None)
-            ri = dec.robot_inputs(p)
-            r = steps.pick("robot", ri, active, None, p)
-            ni = dec.nav_inputs(p, r)
-            n = steps.pick("nav", ni, active, r, p) - 1
-            ci = dec.cls_inputs(p, r, n)
-            c = steps.pick("cls", ci, active, r, p) - 1
-            dec.commit(active, p, r, n, c)
+        p = steps.pick("poi", pi, active, dec.r_ff, None)
+        ri = dec.robot_inputs(p)
+        r = steps.pick("robot", ri, active, None, p)
+        ni = dec.nav_inputs(p, r)
+        n = steps.pick("nav", ni, active, r, p) - 1
+        ci = dec.cls_inputs(p, r, n)
+        c = steps.pick("cls", ci, active, r, p) - 1
+        dec.commit(active, p, r, n, c)
     if dec is not root:
         dec.put(root, rows_in_root)
     return root.finish()
@@ -152,10 +140,10 @@ class _Steps:
     made once per decode, and the choice of each sub-decision from its inputs, its logits by the
     compiled scorer (`scorer_loop`)."""
 
-    def __init__(self, net: AllocationNet, emb: dict[str, torch.Tensor], choose: Chooser,
+    def __init__(self, net: AllocationPart, emb: dict[str, np.ndarray], choose: Chooser,
                  residual: bool, trace: DecodeTrace | None):
         self.choose, self.residual, self.trace = choose, residual, trace
-        self.weights = {k: scorer_loop.weights(net.scorers[k]) for k in KINDS}
+        self.weights = net.scorers
         self.tokens = {g: _array(emb[g]) for g in ("tasks", "robots")}
         E = self.tokens["tasks"].shape[0]
         self.zeros = np.zeros(E, np.int64)
@@ -190,85 +178,33 @@ class _Steps:
             self.tokens["tasks"], self.tokens["robots"],
             self.zeros if robot is None else robot, self.zeros if task is None else task,
             self.residual)
-        choice = self.choose(kind, torch.from_numpy(logits))
+        choice = self.choose(kind, logits)
         if self.trace is not None:
             self.trace.add(kind, inp, mask, choice, active, robot, task)
         return choice
 
 
-def _array(t: torch.Tensor) -> np.ndarray:
-    """A token tensor as a contiguous float32 array."""
-    return np.ascontiguousarray(t.detach().cpu().numpy(), dtype=np.float32)
+def _array(t: np.ndarray) -> np.ndarray:
+    """Tokens as a contiguous float32 array."""
+    return np.ascontiguousarray(t, dtype=np.float32)
 
 
 DECODE, KEEP, HEURISTIC = 0, 1, 2
 """pi_TR's first step, per POI: decode it again, keep its triple, take greedy's."""
 
 
-def decide_keep(inputs: StepInputs, net: AllocationNet, emb: dict[str, torch.Tensor],
+def decide_keep(inputs: StepInputs, net: AllocationPart, emb: dict[str, np.ndarray],
                 choose: Chooser, *, residual: bool = True,
                 trace: DecodeTrace | None = None) -> np.ndarray:
     """pi_TR's first step: (E, P) DECODE, KEEP or HEURISTIC per POI (-1 where nothing is
     decided)."""
     inputs = _clean(inputs)
-    with torch.inference_mode():
-        logits = net.keep(torch.from_numpy(inputs.features), emb["tasks"],
-                          torch.as_tensor(inputs.prior, dtype=torch.float32),
-                          torch.from_numpy(inputs.mask), residual)
-        choice = choose("keep", logits)
+    logits = net.keep(inputs.features, emb["tasks"], inputs.prior.astype(np.float32),
+                      inputs.mask, residual)
+    choice = choose("keep", logits)
     decided = inputs.mask.any(-1)
     if trace is not None:
         trace.keep = {"features": inputs.features, "mask": inputs.mask,
                       "prior": inputs.prior.astype(np.float32), "choice": choice,
                       "decided": decided}
     return np.where(decided, choice, -1)
-
-
-def trace_log_prob(net: AllocationNet, emb: dict[str, torch.Tensor], trace: DecodeTrace,
-                   residual: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
-    """Sum over the decode's steps of each episode's log-probability of its choices, and of
-    the entropies of the sub-decisions, both (E,), with gradient."""
-    E, dev = emb["tasks"].shape[0], emb["tasks"].device
-
-    def tensor(a: np.ndarray) -> torch.Tensor:             # on the network's device
-        return torch.from_numpy(a).to(dev)
-
-    logp = torch.zeros(E, device=dev)
-    ent = torch.zeros(E, device=dev)
-    if trace.keep is not None:
-        k = trace.keep
-        mask = tensor(k["mask"])
-        logits = net.keep(tensor(k["features"]), emb["tasks"], tensor(k["prior"]), mask,
-                          residual)
-        lsm = torch.log_softmax(logits, -1)
-        free = tensor(k["decided"]) & (mask.sum(-1) > 1)
-        choice = tensor(k["choice"].astype(np.int64))
-        logp = logp + torch.where(free, lsm.gather(-1, choice[..., None])[..., 0], 0.0).sum(-1)
-        ent = ent - torch.where(free, (lsm.exp() * lsm.clamp(min=-30)).sum(-1), 0.0).sum(-1)
-    if trace.n_steps == 0:
-        return logp, ent
-    for kind in KINDS:
-        st = trace.stacked(kind)                               # (S, E, ...) a step each
-        mask = st["mask"]
-        # a decision with one legal choice (or of an episode whose decoding is over) carries
-        # no probability mass: scored are the legal candidates of the others alone
-        ks, ke = np.nonzero((mask.sum(-1) > 1) & st["active"])
-        if ks.size == 0:
-            continue
-        K, n = ks.size, mask.shape[-1]
-        rk, rn = np.nonzero(mask[ks, ke])                      # the rows: (decision, candidate)
-        cand = net.candidates(kind, emb)[:, :n]                  # (E, N, d)
-        idx = {"robot": tensor(st["robot"]), "task": tensor(st["task"])}
-        ctx = step_context(kind, emb, idx)[tensor(ks), tensor(ke)]     # (K, d)
-        rows = net.scorers[kind].rows(
-            tensor(st["features"][ks[rk], ke[rk], rn]), cand.reshape(-1, cand.shape[-1]), ctx,
-            tensor(st["prior"][ks[rk], ke[rk], rn]), tensor(ke[rk] * n + rn), tensor(rk),
-            residual)
-        logits = torch.full((K, n), NEG, dtype=rows.dtype, device=dev).index_put(
-            (tensor(rk), tensor(rn)), rows)
-        lsm = torch.log_softmax(logits, -1)
-        choice = tensor(st["choice"][ks, ke].astype(np.int64))
-        episode = tensor(ke)
-        logp = logp.index_add(0, episode, lsm.gather(-1, choice[:, None])[:, 0])
-        ent = ent.index_add(0, episode, -(lsm.exp() * lsm.clamp(min=-30)).sum(-1))
-    return logp, ent

@@ -14,7 +14,6 @@ is the same code reading the raw S.
 from __future__ import annotations
 
 import numpy as np
-import torch
 
 from ata.core.state import DecisionContext, Observation
 from ata.model.tables import MAX_POINTS
@@ -83,7 +82,15 @@ def seen_state(ctx: DecisionContext) -> dict[str, np.ndarray]:
     return feats
 
 
-def to_tensors(feats: dict[str, np.ndarray], device: torch.device | None = None
-               ) -> dict[str, torch.Tensor]:
-    # torch.tensor copies: the context's arrays are read-only, which torch.as_tensor warns of
-    return {k: torch.tensor(v, dtype=torch.float32, device=device) for k, v in feats.items()}
+def equal_runs(feats: dict[str, np.ndarray]) -> np.ndarray | None:
+    """The first episode of each run of equal consecutive episodes of `feats` (a training
+    step's samples of one scenario share its I), or None where no two consecutive episodes are
+    equal (an evaluation's batch): what an encoder need read once."""
+    E = feats["tasks"].shape[0]
+    same = np.ones(max(E - 1, 0), bool)
+    if E > 1:
+        for v in feats.values():
+            same &= (v[1:] == v[:-1]).reshape(E - 1, -1).all(1)
+    if not same.any():
+        return None
+    return np.flatnonzero(np.concatenate([[True], ~same]))

@@ -1,11 +1,11 @@
-"""Optional plugin ``ita``: the attention ITA policy of ATA-HRL and its trainer."""
+"""Optional plugin ``ita``: the attention ITA policy of ATA-HRL (its trainer ``ata_hrl`` is
+the plugin ``ata.plugins.ata_hrl.train``, loaded when a training mission names it: deciding
+needs no torch)."""
 
 from ata import hookimpl
 from ata.plugins.ata_hrl.components import AttentionITA
-from ata.plugins.ata_hrl.trainer import ATAHRLTrainer
 
 
 @hookimpl
 def ata_register_components(register) -> None:
     register("policy", "attention", AttentionITA)
-    register("trainer", "ata_hrl", ATAHRLTrainer)

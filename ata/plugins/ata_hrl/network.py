@@ -16,43 +16,17 @@ the prior does; ``residual = False`` switches the learned part off.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
 
 import numpy as np
 import torch
 from torch import nn
 from torch.nn import functional as F
 
-from ata.plugins.ata_hrl.inputs import (CLS_FEATURES, KEEP_FEATURES, NAV_FEATURES,
-                                        POI_FEATURES, ROBOT_FEATURES)
-from ata.plugins.ata_hrl.features import GROUPS, to_tensors
+from ata.plugins.ata_hrl.arch import (COND_FEATURES, FEATURES, I_DIMS, KINDS, NEG,  # noqa: F401
+                                      PRIOR_SCALE, S_DIMS, NetConfig)
+from ata.plugins.ata_hrl.features import GROUPS, equal_runs
+from ata.plugins.ata_hrl.inputs import KEEP_FEATURES
 from ata.plugins.ata_hrl.status import STATUS_FEATURES
-
-NEG = -1e9
-I_DIMS = {"humans": 5, "robots": 3, "tasks": 7}
-S_DIMS = {"humans": 4, "robots": 5, "tasks": 7}
-KINDS = ("poi", "robot", "nav", "cls")
-FEATURES = {"poi": POI_FEATURES, "robot": ROBOT_FEATURES, "nav": NAV_FEATURES,
-            "cls": CLS_FEATURES, "keep": KEEP_FEATURES}
-PRIOR_SCALE = {"poi": 750.0, "robot": 6.0, "nav": 750.0, "cls": 1.5, "keep": 1.5}
-"""Initial prior scales: sampled from the prior alone, decisions stay close to greedy's."""
-
-
-@dataclass
-class NetConfig:
-    """The architecture; a checkpoint records it."""
-
-    d_model: int = 32
-    heads: int = 4
-    layers: int = 2
-    hidden: int = 64
-    z_dim: int = 4
-    recon_hidden: int = 32
-    status_hidden: int = 0      # width of the aux module's status head (0: none)
-
-    def as_dict(self) -> dict:
-        return asdict(self)
-
 
 def sinusoid(n: int, d: int, device: torch.device | None = None) -> torch.Tensor:
     """Positional embeddings for indices 0..n-1 (any team size)."""
@@ -89,21 +63,23 @@ class Encoder(nn.Module):
         return dict(zip(GROUPS, torch.split(out, sizes, dim=1)))
 
 
+def to_tensors(feats: dict[str, np.ndarray], device: torch.device | None = None
+               ) -> dict[str, torch.Tensor]:
+    """Features as float32 tensors (copies: the context's arrays are read-only, which
+    torch.as_tensor warns of)."""
+    return {k: torch.tensor(v, dtype=torch.float32, device=device) for k, v in feats.items()}
+
+
 def encode_once(encoder: Encoder, feats: dict[str, np.ndarray],
                 device: torch.device | None = None) -> dict[str, torch.Tensor]:
     """`encoder` on the I features `feats` (numpy, on `device`), reading each run of equal
-    consecutive episodes once (a training step's samples of one scenario share its I): the
-    run's embeddings are repeated for its episodes, and their gradients add up into the one
-    pass. Where no two consecutive episodes are equal (an evaluation's batch), this is
-    `encoder(feats)` itself."""
+    consecutive episodes once (`features.equal_runs`): the run's embeddings are repeated for its
+    episodes, and their gradients add up into the one pass. Where no two consecutive episodes
+    are equal (an evaluation's batch), this is `encoder(feats)` itself."""
     E = feats["tasks"].shape[0]
-    same = np.ones(max(E - 1, 0), bool)
-    if E > 1:
-        for v in feats.values():
-            same &= (v[1:] == v[:-1]).reshape(E - 1, -1).all(1)
-    if not same.any():
+    starts = equal_runs(feats)
+    if starts is None:
         return encoder(to_tensors(feats, device))
-    starts = np.flatnonzero(np.concatenate([[True], ~same]))
     counts = torch.as_tensor(np.diff(np.append(starts, E)), device=device)
     emb = encoder(to_tensors({g: v[starts] for g, v in feats.items()}, device))
     return {g: v.repeat_interleave(counts, 0, output_size=E) for g, v in emb.items()}
@@ -253,10 +229,6 @@ def step_context(kind: str, emb: dict[str, torch.Tensor], ctx_idx: dict[str, tor
         return gather_rows(emb["tasks"], ctx_idx["task"])
     return gather_rows(emb["tasks"], ctx_idx["task"]) + gather_rows(emb["robots"],
                                                                     ctx_idx["robot"])
-
-
-COND_FEATURES = 10
-"""Inputs of pi_C beside the pooled state embedding (ata.plugins.ata_hrl.components)."""
 
 
 class ConditionNet(nn.Module):

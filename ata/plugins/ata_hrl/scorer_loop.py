@@ -8,9 +8,9 @@ is one call. And every candidate's logit is computed in one fixed order of its o
 same whatever the batch, the other episodes or the other candidates (no matrix product that
 rounds a row by the matrix's shape).
 
-The logits are those of `network.StepScorer.forward` up to float32 rounding (the sums run in
-another order than torch's products): tests/test_scorer_loop.py holds them within 1e-4 of each
-other. Training recomputes a decode's log-probabilities with torch (`decode.trace_log_prob`),
+The logits are those of `network.StepScorer.forward` (torch) up to float32 rounding (the sums
+run in another order than torch's products): tests/test_scorer_loop.py holds them within 1e-4 of
+each other. Training recomputes a decode's log-probabilities with torch (`logprob.trace_log_prob`),
 for their gradient.
 """
 
@@ -19,10 +19,9 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-import torch
 
 from ata.model.scalar import jit
-from ata.plugins.ata_hrl.network import NEG, StepScorer
+from ata.plugins.ata_hrl.arch import NEG
 
 CONTEXT = {"poi": 0, "robot": 1, "nav": 2, "cls": 2}
 """The context token of each sub-decision (`network.step_context`): the robot's (0), the POI's
@@ -45,19 +44,21 @@ class ScorerWeights(NamedTuple):
     scale: np.float32       # exp(log_scale)
 
 
-def weights(scorer: StepScorer) -> ScorerWeights:
-    """A scorer's parameters as they are now (a decode reads them once)."""
-    def mat(layer) -> np.ndarray:
-        return np.ascontiguousarray(layer.weight.detach().cpu().numpy().T, dtype=np.float32)
+def weights(params: dict[str, np.ndarray], prefix: str) -> ScorerWeights:
+    """The parameters of the scorer `prefix` (``ita.scorers.poi``, say) of a network's state
+    dict (numpy arrays, as a checkpoint holds them)."""
+    def mat(name: str) -> np.ndarray:
+        return np.ascontiguousarray(params[f"{prefix}.{name}.weight"].T, dtype=np.float32)
 
-    def vec(t: torch.Tensor) -> np.ndarray:
-        return np.ascontiguousarray(t.detach().cpu().numpy().reshape(-1), dtype=np.float32)
+    def vec(name: str) -> np.ndarray:
+        return np.ascontiguousarray(params[f"{prefix}.{name}"].reshape(-1), dtype=np.float32)
 
-    out, lin = scorer.out[3], scorer.linear
-    return ScorerWeights(mat(scorer.feat), vec(scorer.feat.bias), mat(scorer.ctx),
-                         mat(scorer.cand), mat(scorer.out[1]), vec(scorer.out[1].bias),
-                         vec(out.weight), np.float32(out.bias.item()), vec(lin.weight),
-                         np.float32(lin.bias.item()), np.float32(scorer.log_scale.exp().item()))
+    return ScorerWeights(mat("feat"), vec("feat.bias"), mat("ctx"), mat("cand"), mat("out.1"),
+                         vec("out.1.bias"), vec("out.3.weight"),
+                         np.float32(params[f"{prefix}.out.3.bias"].reshape(())),
+                         vec("linear.weight"),
+                         np.float32(params[f"{prefix}.linear.bias"].reshape(())),
+                         np.float32(np.exp(params[f"{prefix}.log_scale"].astype(np.float32))))
 
 
 @jit

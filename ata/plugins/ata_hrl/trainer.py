@@ -22,11 +22,13 @@ from typing import Any
 
 import numpy as np
 import torch
+from threadpoolctl import threadpool_limits
 
 from ata.core.errors import MissionError
 from ata.core.kernel import Simulation, build_component
 from ata.core.settings import param
 from ata.plugins.ata_hrl import decode as D
+from ata.plugins.ata_hrl import logprob
 from ata.plugins.ata_hrl.checkpoint import (FORMAT, KIND, CheckpointError, check_format,
                                             net_from_checkpoint, read_checkpoint)
 from ata.plugins.ata_hrl.components import (AttentionITA, AuxReconstructor, CTRPolicy,
@@ -196,6 +198,7 @@ class ATAHRLTrainer:
         """Every phase, resuming wherever the counters stand."""
         self.loop.run = run
         torch.set_num_threads(1)     # one reduction order: `threads` parallels the update's parts
+        threadpool_limits(1, user_api="blas")     # the rollouts' products: one thread, as a run's
         if resume and run.resumes:
             self.load(run.checkpoint_path, run.resume_checkpoint(KIND))
         else:
@@ -358,7 +361,7 @@ class ATAHRLTrainer:
         """Run scenarios `ids` as the phase plays them: the part it trains sampling and recording
         (`train`), or every decision by its mode."""
         recorder = Recorder() if train else None
-        sampler = D.torch_sampler(self.gen) if train else None
+        sampler = logprob.torch_sampler(self.gen) if train else None
         overrides = self.overrides(mission, phase, recorder, sampler)
         record = Simulation(mission, self.registry, ids, overrides=overrides).run()
         return record, recorder

@@ -29,7 +29,8 @@ from ata.core.kernel import Simulation
 from ata.core.settings import param
 from ata.plugins.ata_hrl import decode as D
 from ata.plugins.ata_hrl.components import Recorder
-from ata.plugins.ata_hrl.features import GROUPS, to_tensors
+from ata.plugins.ata_hrl.features import GROUPS
+from ata.plugins.ata_hrl.network import to_tensors
 from ata.plugins.ata_hrl.phases import FIRST_ID
 from ata.plugins.ata_hrl.phases.ctr import tr_from_ita
 from ata.plugins.ata_hrl.rewards import to_go

@@ -16,10 +16,10 @@ import numpy as np
 import torch
 
 from ata.core.settings import param
-from ata.plugins.ata_hrl import decode as D
+from ata.plugins.ata_hrl import logprob
 from ata.plugins.ata_hrl.components import Recorder
-from ata.plugins.ata_hrl.features import GROUPS, to_tensors
-from ata.plugins.ata_hrl.network import encode_once
+from ata.plugins.ata_hrl.features import GROUPS
+from ata.plugins.ata_hrl.network import encode_once, to_tensors
 from ata.plugins.ata_hrl.phases.policy import PolicyPhase, per_epoch_advantage, scaled
 
 
@@ -88,7 +88,7 @@ class CtrPhase(PolicyPhase):
                 rows = torch.as_tensor(item["rows"], device=dev)
                 emb = net.tr.embed({g: v[rows] for g, v in emb_i.items()},
                                    to_tensors(item["raw"], dev), to_tensors(item["seen"], dev))
-                terms.append(D.trace_log_prob(net.tr, emb, item["trace"])[0])
+                terms.append(logprob.trace_log_prob(net.tr, emb, item["trace"])[0])
                 advs.append(adv_all[item["rows"], item["epoch"]])
             loss = loss - (scaled(np.concatenate(advs), dev) * torch.cat(terms)).sum() \
                 / R["total"].size

@@ -15,7 +15,7 @@ import numpy as np
 import torch
 
 from ata.core.settings import param
-from ata.plugins.ata_hrl import decode as D
+from ata.plugins.ata_hrl import logprob
 from ata.plugins.ata_hrl.components import Recorder
 from ata.plugins.ata_hrl.network import encode_once
 from ata.plugins.ata_hrl.phases.policy import PolicyPhase, scaled, shared_baseline_advantage
@@ -61,7 +61,7 @@ class ItaPhase(PolicyPhase):
         def part(rows: slice) -> torch.Tensor:
             feats = {g: v[rows] for g, v in rec.inherent.items()}
             emb = encode_once(net.ita.encoder, feats, dev)
-            logp, _ = D.trace_log_prob(net.ita, emb, rec.ita.take(rows))
+            logp, _ = logprob.trace_log_prob(net.ita, emb, rec.ita.take(rows))
             return -(adv[rows] * logp).sum() / E
         for group in np.array_split(np.arange(E // K), min(UPDATE_GROUPS, E // K)):
             yield partial(part, slice(group[0] * K, (group[-1] + 1) * K))
