@@ -72,7 +72,7 @@ def measure(teams: list[str], quick: bool, repeats: int, say=print) -> dict[str,
         rows[key] = {"label": label, "pois": pois, "scenarios": n, **best,
                      "ratio": best["ATA-HRL"] / best["greedy"]}
         say(f"[scaling] {label}: {n} scenarios, whole process, CPU s per scenario: greedy "
-            f"{best['greedy']:.3f}, ATA-HRL {best['ATA-HRL']:.3f} ({rows[key]['ratio']:.1f}x)")
+            f"{best['greedy']:.3f}, ATA-HRL {best['ATA-HRL']:.3f} ({rows[key]['ratio']:.2f}x)")
     return rows
 
 
