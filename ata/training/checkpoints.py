@@ -12,7 +12,7 @@ import numpy as np
 from ata.core.errors import MissionError
 from ata.runtime.heldout import EVAL_FIRST_SCENARIO
 from ata.runtime.inputs import resolve, shipped_mismatch
-from ata.training import tensorfile
+from ata.training.tensorfile import ForeignGlobal, load as load_arrays
 
 TRAINING_ID_LIMIT = EVAL_FIRST_SCENARIO
 """Training scenario ids lie below this; evaluation ids start there."""
@@ -83,8 +83,8 @@ def _load_torch(p: Path) -> Any:
 
 def _load_arrays(p: Path) -> Any:
     try:
-        return tensorfile.load(p)
-    except tensorfile.ForeignGlobal:
+        return load_arrays(p)
+    except ForeignGlobal:
         raise CheckpointError(p, FOREIGN) from None
     except Exception as exc:   # empty, truncated, corrupted, or not a torch file at all
         first = (str(exc).splitlines() or [""])[0][:200]

@@ -36,6 +36,8 @@ class NetConfig:
         return asdict(self)
 
 
+LATENCY_LAYERS = 3
+"""The stacked GRUs of the delayed-state reconstruction (``network.LatencyGRU``)."""
 COND_FEATURES = 10
 """Inputs of pi_C beside the pooled state embedding (ata.plugins.ata_hrl.components)."""
 
@@ -108,7 +110,7 @@ def expected_shapes(cfg: NetConfig) -> dict[str, tuple]:
     out.update(_mlp("fatigue.enc", [3, r, 2 * cfg.z_dim]))
     out.update(_mlp("fatigue.dec", [cfg.z_dim + 2, r, 1]))
     for g in ("robots", "tasks"):
-        for k in range(3):
+        for k in range(LATENCY_LAYERS):
             out.update(_gru(f"latency.{g}.gru", S_DIMS[g] if k == 0 else r, r, f"_l{k}"))
         out.update(_linear(f"latency.{g}.ff", r, S_DIMS[g]))
     if cfg.status_hidden > 0:

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from ata.plugins.ata_hrl import scorer_loop
-from ata.plugins.ata_hrl.arch import KINDS, NEG, NetConfig
+from ata.plugins.ata_hrl.arch import KINDS, LATENCY_LAYERS, NEG, NetConfig
 from ata.plugins.ata_hrl.features import GROUPS, equal_runs
 
 F32 = np.float32
@@ -234,11 +234,10 @@ class InferenceNet:
         or None -> the estimates (N, F) and the next hidden state."""
         w, pre = self.w, f"latency.{group}"
         x = x.astype(F32)
-        layers = 3
         if hidden is None:
-            hidden = np.zeros((layers, x.shape[0], self.cfg.recon_hidden), F32)
+            hidden = np.zeros((LATENCY_LAYERS, x.shape[0], self.cfg.recon_hidden), F32)
         out, new = x, []
-        for k in range(layers):
+        for k in range(LATENCY_LAYERS):
             out = _gru_cell(w, out, hidden[k], f"{pre}.gru.weight_ih_l{k}",
                             f"{pre}.gru.weight_hh_l{k}", f"{pre}.gru.bias_ih_l{k}",
                             f"{pre}.gru.bias_hh_l{k}")

@@ -22,8 +22,8 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from ata.plugins.ata_hrl.arch import (COND_FEATURES, FEATURES, I_DIMS, KINDS, NEG,  # noqa: F401
-                                      PRIOR_SCALE, S_DIMS, NetConfig)
+from ata.plugins.ata_hrl.arch import (COND_FEATURES, FEATURES, I_DIMS, KINDS,  # noqa: F401
+                                      LATENCY_LAYERS, NEG, PRIOR_SCALE, S_DIMS, NetConfig)
 from ata.plugins.ata_hrl.features import GROUPS, equal_runs
 from ata.plugins.ata_hrl.inputs import KEEP_FEATURES
 from ata.plugins.ata_hrl.status import STATUS_FEATURES
@@ -302,7 +302,8 @@ class LatencyGRU(nn.Module):
 
     def __init__(self, features: int, cfg: NetConfig):
         super().__init__()
-        self.gru = nn.GRU(features, cfg.recon_hidden, num_layers=3, batch_first=True)
+        self.gru = nn.GRU(features, cfg.recon_hidden, num_layers=LATENCY_LAYERS,
+                          batch_first=True)
         self.ff = nn.Linear(cfg.recon_hidden, features)
 
     def forward(self, seq: torch.Tensor, hidden: torch.Tensor | None = None
