@@ -3,8 +3,9 @@
 Usage: python benchmarks/bench_training.py [--setting a] [--scenarios 16] [--samples 8]
                                            [--repeats 3] [--threads 2] [--device cpu]
 
-Setting (a), medium uncertainty, one torch thread, the ITA update's parts on `--threads` threads
-(``[ata_hrl] threads``, the recipe's 2), an untrained network of the shipped architecture; each
+Setting (a), medium uncertainty, one torch thread, an ITA step's rollout on `--threads` processes
+and its update's parts on as many threads (``[ata_hrl] threads``, the recipe's 2; 1: all in
+this process, on one thread), an untrained network of the shipped architecture; each
 row is the median of ``repeats`` timings of ``scenarios x samples`` episodes (one training
 step's worth). ``--device cuda`` runs the training steps' updates on a GPU
 (``[ata_hrl] device``; the rollouts decode on the CPU) and adds the network's forward pass at
@@ -139,8 +140,8 @@ def main() -> None:
     parser.add_argument("--scenarios", type=int, default=16)
     parser.add_argument("--samples", type=int, default=8)
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--threads", type=int, default=2, help="[ata_hrl] threads: CPU threads "
-                        "of an ITA update (its parts side by side; the same weights)")
+    parser.add_argument("--threads", type=int, default=2, help="[ata_hrl] threads: processes "
+                        "of an ITA step's rollout, threads of its update (the same weights)")
     parser.add_argument("--device", default="cpu", help="device of the training steps' "
                         "updates ([ata_hrl] device): cpu or cuda")
     args = parser.parse_args()

@@ -36,6 +36,7 @@ from ata.plugins.ata_hrl.components import (AttentionITA, AuxReconstructor, CTRP
 from ata.plugins.ata_hrl.network import ATAHRLNet, NetConfig
 from ata.plugins.ata_hrl.phases import FIRST_ID, SPAN, aux, cond, ctr, ita, policy, status
 from ata.plugins.ata_hrl.phases.ctr import tr_from_ita
+from ata.plugins.ata_hrl.phases.rollouts import Rollouts
 from ata.training import VALIDATION_SEED_OFFSET, PhaseLoop, TrainRun, resolve, trained_on
 
 LOG_FIELDS = ["phase", "step", "setting", "episodes", "episodes_per_s", "loss", "mean_score",
@@ -66,9 +67,9 @@ class RunSettings:
                                 help="validation scenarios per team setting (and per "
                                 "uncertainty level, with uncertainty_levels); one batch")
     checkpoint_every: int = param(10, min=1, help="write checkpoint.pt every N steps")
-    threads: int = param(2, min=1, max=256, help="CPU threads of an ITA update: its parts' "
-                         "gradients side by side, each on one torch thread (the weights do not "
-                         "depend on it)")
+    threads: int = param(2, min=1, max=256, help="CPU threads of an ITA step: its rollout's "
+                         "episodes in as many processes, its update's parts' gradients side by "
+                         "side, each on one torch thread (the weights do not depend on it)")
     device: str = param("cpu", help="torch device of the ITA and CTR phases' updates (the "
                         "log-probabilities, backward and Adam step): 'cpu', or 'cuda' for a GPU; "
                         "the rollouts decode on the CPU, the other phases run there")
@@ -141,6 +142,7 @@ class ATAHRLTrainer:
         self.loop = PhaseLoop(PHASES, self.checkpoint)
         self.aux, self.status = aux.AuxPhase(self), status.StatusPhase(self)
         self.ita, self.cond, self.ctr = ita.ItaPhase(self), cond.CondPhase(self), ctr.CtrPhase(self)
+        self.rollouts = Rollouts(self, settings.threads)
 
     # -- the trainer interface ------------------------------------------------------------------
     @property
@@ -207,8 +209,11 @@ class ATAHRLTrainer:
             if self.s.ita_from:
                 self.take_ita(self.s.ita_from)
         report: dict[str, float] = {}
-        for part in (self.aux, self.status, self.ita, self.cond, self.ctr):
-            report.update(self.loop.run_phase(part.phase()))
+        try:
+            for part in (self.aux, self.status, self.ita, self.cond, self.ctr):
+                report.update(self.loop.run_phase(part.phase()))
+        finally:
+            self.rollouts.close()
         self._tr_at_step_0()
         return {**self.loop.finish(), "aux": report}
 
@@ -360,6 +365,10 @@ class ATAHRLTrainer:
     def rollout(self, mission, ids: np.ndarray, phase: str, train: bool):
         """Run scenarios `ids` as the phase plays them: the part it trains sampling and recording
         (`train`), or every decision by its mode."""
+        if train and phase == "ita":
+            return self.rollouts.ita(mission, ids)
+        if not train:
+            return self.rollouts.mode(mission, ids, phase), None
         recorder = Recorder() if train else None
         sampler = logprob.torch_sampler(self.gen) if train else None
         overrides = self.overrides(mission, phase, recorder, sampler)
