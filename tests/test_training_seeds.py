@@ -192,9 +192,14 @@ def test_the_curves_across_seeds_draw_each_seed_their_mean_the_middle_half_and_t
     plt.close(fig)
 
 
-def test_eval_of_one_run_folder_pairs_its_weights_with_greedy(seeds_dir, cli, tmp_path):
-    result = cli("eval", seeds_dir / "seed-1", "-n", 2, "-o", tmp_path / "ev", "-e", "serial",
-                 "-q")
+@pytest.mark.parametrize("relative", [False, True])
+def test_eval_of_one_run_folder_pairs_its_weights_with_greedy(seeds_dir, cli, tmp_path,
+                                                              relative, monkeypatch):
+    folder = seeds_dir / "seed-1"
+    if relative:                     # `ata eval runs/NAME` from the folder above it
+        monkeypatch.chdir(seeds_dir)
+        folder = "seed-1"
+    result = cli("eval", folder, "-n", 2, "-o", tmp_path / "ev", "-e", "serial", "-q")
     assert result.exit_code == 0, result.output
     with open(tmp_path / "ev" / "results.csv", newline="") as f:
         rows = list(csv.DictReader(f))

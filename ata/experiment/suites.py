@@ -235,5 +235,6 @@ def _against_greedy(mission: dict[str, Any], path: str) -> dict[str, Any]:
     for key, name in (("setting", "settings"), ("uncertainty", "uncertainty")):
         if isinstance(head.get(key), str):
             suite[name] = [head[key]]
-    return {"suite": suite, "method": [{"name": label, "mission": path},
+    # the mission by its name: a method's mission is read from the suite file's folder
+    return {"suite": suite, "method": [{"name": label, "mission": Path(path).name},
                                        {"name": "greedy", "mission": "builtin:greedy"}]}
