@@ -36,7 +36,8 @@ def rollout(trainer, workers: int | None):
     trainer.gen = torch.Generator().manual_seed(9)
     mission = trainer.mission_of("custom", 7)
     if workers is None:
-        record, rec = play(trainer, mission, IDS, trainer.net, None)
+        record, rec = play(trainer, mission, IDS, trainer.net,
+                           logprob.torch_sampler(trainer.gen))
     else:
         pool = Rollouts(trainer, workers)
         try:

@@ -369,9 +369,8 @@ class ATAHRLTrainer:
             return self.rollouts.ita(mission, ids)
         if not train:
             return self.rollouts.mode(mission, ids, phase), None
-        recorder = Recorder() if train else None
-        sampler = logprob.torch_sampler(self.gen) if train else None
-        overrides = self.overrides(mission, phase, recorder, sampler)
+        recorder = Recorder()
+        overrides = self.overrides(mission, phase, recorder, logprob.torch_sampler(self.gen))
         record = Simulation(mission, self.registry, ids, overrides=overrides).run()
         return record, recorder
 

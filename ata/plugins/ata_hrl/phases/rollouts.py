@@ -26,7 +26,6 @@ import torch
 from ata.core.kernel import Simulation
 from ata.core.state import EpisodeRecord
 from ata.plugins.ata_hrl import decode as D
-from ata.plugins.ata_hrl import logprob
 from ata.plugins.ata_hrl.arch import KINDS
 from ata.plugins.ata_hrl.components import Recorder
 
@@ -197,13 +196,12 @@ def _serve(conn: Any) -> None:
             conn.send((False, exc))
 
 
-def play(host: Any, mission: Any, ids: np.ndarray, net: Any,
-         noise: list[np.ndarray] | None) -> tuple[EpisodeRecord, Recorder]:
-    """Episodes `ids` of an ITA step with network `net`, each choice sampled with `noise`
-    (`block_sampler`), or, with None, with the host's generator as it goes."""
+def play(host: Any, mission: Any, ids: np.ndarray, net: Any, sampler: D.Chooser
+         ) -> tuple[EpisodeRecord, Recorder]:
+    """Episodes `ids` of an ITA step with network `net`, each choice sampled by `sampler`
+    (`block_sampler`; `logprob.torch_sampler` draws as it goes) and recorded."""
     rec = Recorder()
     overrides = host.overrides(mission, "ita", None, None)
-    sampler = logprob.torch_sampler(host.gen) if noise is None else block_sampler(noise)
     overrides["initial"].train_with(net, rec, sampler)
     return Simulation(mission, host.registry, ids, overrides=overrides).run(), rec
 
@@ -216,7 +214,8 @@ def play_mode(host: Any, mission: Any, ids: np.ndarray, phase: str) -> EpisodeRe
 
 def _job(host: Any, job: str, *args: Any) -> Any:
     if job == "ita":
-        return play(host, *args[:2], host.net, *args[2:])
+        mission, ids, noise = args
+        return play(host, mission, ids, host.net, block_sampler(noise))
     return play_mode(host, *args)
 
 
