@@ -105,7 +105,8 @@ def log_rows(run_dir) -> list[dict]:
     pytest.param("cond", "0", RULE_ROUNDS, marks=pytest.mark.slow),  # before any checkpoint
     # killed in the rule's second round, the first saved (100 s: slow)
     pytest.param("cond", "2", RULE_ROUNDS, marks=pytest.mark.slow),
-    ("ctr", "2", ())])
+    ("ctr", "2", ()),
+    ("ita", "2", ("ata_hrl.ita_steps=4", "ata_hrl.lr=3e-3", "ata_hrl.lr_end=0.1"))])
 def test_resume_after_kill_ends_with_the_same_weights_and_log(tmp_path, phase, step, extra):
     s = session(*extra) if extra is not RULE_ROUNDS else load_session(
         str(training_mission_for(["ctr", "aux"])),
@@ -430,3 +431,18 @@ def _one_ita_step_each(counts):
                        **{f"opt{i}": v["exp_avg_sq"] for i, v in tr.opt.state_dict()["state"]
                           .items()}})
     return states, losses
+
+
+def test_the_ita_learning_rate_falls_along_a_half_cosine_to_lr_end(tmp_path):
+    tr = build_trainer(session("ata_hrl.ita_steps=5", "ata_hrl.lr=2e-3", "ata_hrl.lr_end=0.1"))
+    lrs = [tr.ita.lr_at(k) for k in range(5)]
+    assert lrs[0] == pytest.approx(2e-3) and lrs[-1] == pytest.approx(2e-4)
+    assert lrs[2] == pytest.approx(1.1e-3)                  # half way: the mean of the two
+    assert all(a > b for a, b in zip(lrs, lrs[1:]))
+    assert tr.ctr.lr_at(3) == tr.s.ctr_lr                   # the CTR phase keeps its own
+    flat = build_trainer(session("ata_hrl.ita_steps=5", "ata_hrl.lr=2e-3"))
+    assert [flat.ita.lr_at(k) for k in range(5)] == [2e-3] * 5
+    # each step updates with its rate: the optimiser holds the last step's
+    done = train(session("ata_hrl.ita_steps=3", "ata_hrl.lr=2e-3", "ata_hrl.lr_end=0.25",
+                         "ata_hrl.ctr_steps=0"), tmp_path)
+    assert [g["lr"] for g in done.opt.param_groups] == [pytest.approx(5e-4)]

@@ -11,6 +11,8 @@ from dataclasses import dataclass
 from functools import partial
 from typing import Callable, Iterator
 
+import math
+
 import numpy as np
 import torch
 
@@ -34,6 +36,9 @@ class Settings:
 
     ita_steps: int = param(300, min=0, help="ita: steps of the ITA phase")
     lr: float = param(1e-3, min=0.0, max=1.0, help="ita: Adam learning rate of the ITA phase")
+    lr_end: float = param(1.0, min=0.0, max=1.0, help="ita: the learning rate at the ITA "
+                          "phase's last step, a fraction of lr: from step 0 it falls along a "
+                          "half cosine to lr * lr_end (1: constant)")
     ita_from: str = param("", help="ita: take the ITA policy from this checkpoint (a path or "
                           "builtin:NAME) and skip the ITA phase: the full method and its "
                           "ablations can share one ITA, trained alone")
@@ -48,6 +53,14 @@ class ItaPhase(PolicyPhase):
 
     def lr(self) -> float:
         return self.tr.s.lr
+
+    def lr_at(self, k: int) -> float:
+        """Step k's learning rate: lr at step 0, falling along a half cosine to lr * lr_end at
+        the phase's last step (a function of k alone, so a resumed run takes the same)."""
+        s, last = self.tr.s, self.tr.phases()[self.name] - 1
+        if s.lr_end == 1.0 or last <= 0:
+            return s.lr
+        return s.lr * (s.lr_end + (1 - s.lr_end) * 0.5 * (1 + math.cos(math.pi * k / last)))
 
     def parts(self, rec: Recorder, R: dict[str, np.ndarray]
               ) -> Iterator[Callable[[], torch.Tensor]]:

@@ -112,6 +112,10 @@ class PolicyPhase:
     def lr(self) -> float:
         raise NotImplementedError
 
+    def lr_at(self, k: int) -> float:
+        """The learning rate of step k (the phase's own, unless a subclass schedules it)."""
+        return self.lr()
+
     def fresh_best(self) -> bool:
         """Whether best.pt is chosen afresh from this phase's step 0 on."""
         return False
@@ -146,6 +150,8 @@ class PolicyPhase:
         ids = np.repeat(tr.ids(self.name, k), s.samples)
         record, rec = tr.rollout(mission, ids, self.name, train=True)
         R = rewards(record)
+        for group in tr.opt.param_groups:
+            group["lr"] = self.lr_at(k)
         loss = self.learn(rec, R)
         columns = {"setting": setting, "loss": f"{loss:.4f}",
                    "mean_score": f"{R['total'].mean():.2f}",
