@@ -440,7 +440,7 @@ def test_the_ita_learning_rate_falls_along_a_half_cosine_to_lr_end(tmp_path):
     assert lrs[2] == pytest.approx(1.1e-3)                  # half way: the mean of the two
     assert all(a > b for a, b in zip(lrs, lrs[1:]))
     assert tr.ctr.lr_at(3) == tr.s.ctr_lr                   # the CTR phase keeps its own
-    flat = build_trainer(session("ata_hrl.ita_steps=5", "ata_hrl.lr=2e-3"))
+    flat = build_trainer(session("ata_hrl.ita_steps=5", "ata_hrl.lr=2e-3", "ata_hrl.lr_end=1"))
     assert [flat.ita.lr_at(k) for k in range(5)] == [2e-3] * 5
     # each step updates with its rate: the optimiser holds the last step's
     done = train(session("ata_hrl.ita_steps=3", "ata_hrl.lr=2e-3", "ata_hrl.lr_end=0.25",
