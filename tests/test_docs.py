@@ -6,8 +6,7 @@ from pathlib import Path
 import pytest
 
 from ata.core.mission import ComponentSlots, MissionSettings, loads_toml
-from ata.core.registry import (OPTIONAL_PLUGINS, collect_components, declared_components,
-                               get_plugin_manager)
+from ata.core.registry import OPTIONAL_PLUGINS, collect_components, get_plugin_manager
 from ata.core.settings import describe
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -15,9 +14,9 @@ MISSIONS_DOC = (ROOT / "docs" / "missions.md").read_text()
 
 
 def _tables():
-    reg = collect_components(get_plugin_manager(optional=OPTIONAL_PLUGINS, entry_points=False))
-    for kind, name in declared_components():     # the lazily registered ones too (trainers)
-        reg.get(kind, name, "test")
+    # declared: the lazily registered components too (the trainers)
+    reg = collect_components(get_plugin_manager(optional=OPTIONAL_PLUGINS, entry_points=False),
+                             declared=True)
     yield "mission", MissionSettings
     yield "components", ComponentSlots
     for info in reg.components.values():

@@ -6,8 +6,7 @@ Usage: python tools/gen_mission_docs.py   (tests/test_docs.py checks the result)
 from pathlib import Path
 
 from ata.core.mission import ComponentSlots, MissionSettings
-from ata.core.registry import (OPTIONAL_PLUGINS, collect_components, declared_components,
-                               get_plugin_manager)
+from ata.core.registry import OPTIONAL_PLUGINS, collect_components, get_plugin_manager
 from ata.core.settings import describe
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "missions.md"
@@ -25,9 +24,7 @@ def table(cls) -> list[str]:
 
 def main() -> None:
     registry = collect_components(get_plugin_manager(optional=OPTIONAL_PLUGINS,
-                                                    entry_points=False))
-    for kind, name in declared_components():     # the lazily registered ones too
-        registry.get(kind, name, "docs")
+                                                    entry_points=False), declared=True)
     lines = [MARK, "", *table(MissionSettings), "", "## `[components]`", "",
              *table(ComponentSlots), ""]
     kinds: dict[str, list[str]] = {}

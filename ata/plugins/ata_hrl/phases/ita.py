@@ -7,11 +7,10 @@ and skips the phase: the full method, its ablations and AtRL-TR can share one IT
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import partial
 from typing import Callable, Iterator
-
-import math
 
 import numpy as np
 import torch
@@ -58,7 +57,7 @@ class ItaPhase(PolicyPhase):
         """Step k's learning rate: lr at step 0, falling along a half cosine to lr * lr_end at
         the phase's last step (a function of k alone, so a resumed run takes the same)."""
         s, last = self.tr.s, self.tr.phases()[self.name] - 1
-        if s.lr_end == 1.0 or last <= 0:
+        if last <= 0:
             return s.lr
         return s.lr * (s.lr_end + (1 - s.lr_end) * 0.5 * (1 + math.cos(math.pi * k / last)))
 

@@ -140,8 +140,7 @@ class PolicyPhase:
                      fresh_best=self.fresh_best(), start=self.start)
 
     def start(self) -> None:
-        for group in self.tr.opt.param_groups:
-            group["lr"] = self.lr()
+        """What the phase does before its first step here (each step sets its own rate)."""
 
     def step(self, k: int) -> tuple[dict[str, Any], int]:
         tr, s = self.tr, self.tr.s
