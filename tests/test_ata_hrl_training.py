@@ -106,7 +106,8 @@ def log_rows(run_dir) -> list[dict]:
     # killed in the rule's second round, the first saved (100 s: slow)
     pytest.param("cond", "2", RULE_ROUNDS, marks=pytest.mark.slow),
     ("ctr", "2", ()),
-    ("ita", "2", ("ata_hrl.ita_steps=4", "ata_hrl.lr=3e-3", "ata_hrl.lr_end=0.1"))])
+    ("ita", "2", ("ata_hrl.ita_steps=4", "ata_hrl.lr=3e-3", "ata_hrl.lr_end=0.1")),
+    ("ita", "3", ("ata_hrl.ita_steps=4", "ata_hrl.ita_epochs=2"))])
 def test_resume_after_kill_ends_with_the_same_weights_and_log(tmp_path, phase, step, extra):
     s = session(*extra) if extra is not RULE_ROUNDS else load_session(
         str(training_mission_for(["ctr", "aux"])),
@@ -410,7 +411,8 @@ def _one_ita_step_each(counts):
     from ata.plugins.ata_hrl.phases.policy import rewards
     states, losses = [], []
     for threads in counts:
-        tr = build_trainer(session("ata_hrl.batch_size=4", f"ata_hrl.threads={max(threads, 1)}"))
+        tr = build_trainer(session("ata_hrl.batch_size=4", f"ata_hrl.threads={max(threads, 1)}",
+                                   "ata_hrl.ita_epochs=1"))      # one update: the reference's
         tr.ita.start()
         record, rec = tr.rollout(tr.mission_of("custom", 7), np.repeat(np.arange(4), 2), "ita",
                                  train=True)

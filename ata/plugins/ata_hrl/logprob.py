@@ -23,9 +23,12 @@ def torch_sampler(generator: torch.Generator) -> Chooser:
 
 
 def trace_log_prob(net: AllocationNet, emb: dict[str, torch.Tensor], trace: DecodeTrace,
-                   residual: bool = True) -> tuple[torch.Tensor, torch.Tensor]:
+                   residual: bool = True, decisions: list | None = None
+                   ) -> tuple[torch.Tensor, torch.Tensor]:
     """Sum over the decode's steps of each episode's log-probability of its choices, and of
-    the entropies of the sub-decisions, both (E,), with gradient."""
+    the entropies of the sub-decisions, both (E,), with gradient. With a list `decisions`,
+    each choice's own log-probability is appended to it too, as (log-probabilities, their
+    episodes) pairs of tensors, in an order fixed by the trace."""
     E, dev = emb["tasks"].shape[0], emb["tasks"].device
 
     def tensor(a: np.ndarray) -> torch.Tensor:             # on the network's device
@@ -41,7 +44,11 @@ def trace_log_prob(net: AllocationNet, emb: dict[str, torch.Tensor], trace: Deco
         lsm = torch.log_softmax(logits, -1)
         free = tensor(k["decided"]) & (mask.sum(-1) > 1)
         choice = tensor(k["choice"].astype(np.int64))
-        logp = logp + torch.where(free, lsm.gather(-1, choice[..., None])[..., 0], 0.0).sum(-1)
+        chosen = torch.where(free, lsm.gather(-1, choice[..., None])[..., 0], 0.0)
+        logp = logp + chosen.sum(-1)
+        if decisions is not None:
+            decisions.append((chosen.reshape(-1), torch.arange(E, device=dev).repeat_interleave(
+                chosen.shape[-1]) if chosen.dim() > 1 else torch.arange(E, device=dev)))
         ent = ent - torch.where(free, (lsm.exp() * lsm.clamp(min=-30)).sum(-1), 0.0).sum(-1)
     if trace.n_steps == 0:
         return logp, ent
@@ -67,6 +74,9 @@ def trace_log_prob(net: AllocationNet, emb: dict[str, torch.Tensor], trace: Deco
         lsm = torch.log_softmax(logits, -1)
         choice = tensor(st["choice"][ks, ke].astype(np.int64))
         episode = tensor(ke)
-        logp = logp.index_add(0, episode, lsm.gather(-1, choice[:, None])[:, 0])
+        chosen = lsm.gather(-1, choice[:, None])[:, 0]
+        logp = logp.index_add(0, episode, chosen)
+        if decisions is not None:
+            decisions.append((chosen, episode))
         ent = ent.index_add(0, episode, -(lsm.exp() * lsm.clamp(min=-30)).sum(-1))
     return logp, ent

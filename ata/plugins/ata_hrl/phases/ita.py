@@ -38,6 +38,11 @@ class Settings:
     lr_end: float = param(1.0, min=0.0, max=1.0, help="ita: the learning rate at the ITA "
                           "phase's last step, a fraction of lr: from step 0 it falls along a "
                           "half cosine to lr * lr_end (1: constant)")
+    ita_epochs: int = param(1, min=1, max=16, help="ita: updates on each rollout; each after "
+                            "the first a clipped-ratio (PPO) step on the same decisions, against "
+                            "the probabilities they were sampled with")
+    ita_clip: float = param(0.2, min=0.0, max=1.0, help="ita: the ratio clip of the updates "
+                            "after the first on a rollout (ita_epochs)")
     ita_from: str = param("", help="ita: take the ITA policy from this checkpoint (a path or "
                           "builtin:NAME) and skip the ITA phase: the full method and its "
                           "ablations can share one ITA, trained alone")
@@ -61,19 +66,46 @@ class ItaPhase(PolicyPhase):
             return s.lr
         return s.lr * (s.lr_end + (1 - s.lr_end) * 0.5 * (1 + math.cos(math.pi * k / last)))
 
+    def learn(self, rec: Recorder, R: dict[str, np.ndarray]) -> float:
+        """The policy-gradient update on the rollout, then, with ``ita_epochs`` above 1, the
+        clipped-ratio updates on the same decisions; returns the first update's loss."""
+        self._sampled: dict[int, torch.Tensor] | None = {} if self.tr.s.ita_epochs > 1 else None
+        loss = super().learn(rec, R)
+        for _ in range(1, self.tr.s.ita_epochs):
+            super().learn(rec, R)
+        self._sampled = None
+        return loss
+
     def parts(self, rec: Recorder, R: dict[str, np.ndarray]
               ) -> Iterator[Callable[[], torch.Tensor]]:
         """-(advantage * log-probability of the sample's decisions), averaged over decisions,
         in parts of whole scenarios (`UPDATE_GROUPS` at most); each scenario's samples are
-        encoded once."""
-        net, K, dev = self.tr.net, self.tr.s.samples, self.tr.device
+        encoded once. Once the rollout's own probabilities are kept (the first update with
+        ``ita_epochs`` above 1), each decision's term is PPO's clipped-ratio objective against
+        them: -min(r A, clip(r, 1 - ita_clip, 1 + ita_clip) A), r the ratio of its probability
+        now to the sampled one (at r = 1 the first update's gradient)."""
+        net, K, dev, s = self.tr.net, self.tr.s.samples, self.tr.device, self.tr.s
         E = R["R_ITA"].size
         adv = scaled(shared_baseline_advantage(R["R_ITA"], K), dev)
+        sampled = getattr(self, "_sampled", None)
+        again = bool(sampled)
 
         def part(rows: slice) -> torch.Tensor:
             feats = {g: v[rows] for g, v in rec.inherent.items()}
             emb = encode_once(net.ita.encoder, feats, dev)
-            logp, _ = logprob.trace_log_prob(net.ita, emb, rec.ita.take(rows))
-            return -(adv[rows] * logp).sum() / E
+            decisions: list | None = [] if sampled is not None else None
+            logp, _ = logprob.trace_log_prob(net.ita, emb, rec.ita.take(rows),
+                                             decisions=decisions)
+            if decisions is None:
+                return -(adv[rows] * logp).sum() / E
+            now = torch.cat([d for d, _ in decisions])
+            episode = torch.cat([e for _, e in decisions])
+            if not again:
+                sampled[rows.start] = now.detach()
+                return -(adv[rows] * logp).sum() / E
+            a = adv[rows][episode]
+            ratio = torch.exp(now - sampled[rows.start])
+            clipped = torch.clamp(ratio, 1 - s.ita_clip, 1 + s.ita_clip)
+            return -torch.minimum(ratio * a, clipped * a).sum() / E
         for group in np.array_split(np.arange(E // K), min(UPDATE_GROUPS, E // K)):
             yield partial(part, slice(group[0] * K, (group[-1] + 1) * K))
