@@ -102,7 +102,7 @@ class ATAHRLTrainer:
     presets = {"smoke": {"aux_batches": 1, "aux_steps": 20, "batch_size": 3, "samples": 4,
                          "ita_steps": 6, "ctr_steps": 2, "eval_every": 3, "eval_scenarios": 4,
                          "checkpoint_every": 2}}
-    """``ata train --preset smoke``: every phase of the recipe, in about a minute of 2 cores."""
+    """``ata train --preset smoke``: every phase of the recipe, in seconds on 2 cores."""
 
     def __init__(self, settings: Settings, mission: Any, registry: Any):
         self.s = settings
