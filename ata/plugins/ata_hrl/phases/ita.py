@@ -54,6 +54,9 @@ class ItaPhase(PolicyPhase):
     name = "ita"
     rewards_logged = ("R_ITA",)        # nothing is reallocated: R_C and R_TR do not apply
     reallocates = False
+    _sampled: dict[int, torch.Tensor] | None = None
+    """While a step updates more than once: each part's decisions' log-probabilities at the
+    sampled weights, kept by the first update (keyed by the part's first row)."""
 
     def lr(self) -> float:
         return self.tr.s.lr
@@ -69,7 +72,7 @@ class ItaPhase(PolicyPhase):
     def learn(self, rec: Recorder, R: dict[str, np.ndarray]) -> float:
         """The policy-gradient update on the rollout, then, with ``ita_epochs`` above 1, the
         clipped-ratio updates on the same decisions; returns the first update's loss."""
-        self._sampled: dict[int, torch.Tensor] | None = {} if self.tr.s.ita_epochs > 1 else None
+        self._sampled = {} if self.tr.s.ita_epochs > 1 else None
         loss = super().learn(rec, R)
         for _ in range(1, self.tr.s.ita_epochs):
             super().learn(rec, R)
@@ -87,7 +90,7 @@ class ItaPhase(PolicyPhase):
         net, K, dev, s = self.tr.net, self.tr.s.samples, self.tr.device, self.tr.s
         E = R["R_ITA"].size
         adv = scaled(shared_baseline_advantage(R["R_ITA"], K), dev)
-        sampled = getattr(self, "_sampled", None)
+        sampled = self._sampled
         again = bool(sampled)
 
         def part(rows: slice) -> torch.Tensor:
