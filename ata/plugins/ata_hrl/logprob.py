@@ -47,8 +47,8 @@ def trace_log_prob(net: AllocationNet, emb: dict[str, torch.Tensor], trace: Deco
         chosen = torch.where(free, lsm.gather(-1, choice[..., None])[..., 0], 0.0)
         logp = logp + chosen.sum(-1)
         if decisions is not None:
-            decisions.append((chosen.reshape(-1), torch.arange(E, device=dev).repeat_interleave(
-                chosen.shape[-1]) if chosen.dim() > 1 else torch.arange(E, device=dev)))
+            episodes = torch.arange(E, device=dev).view(-1, *[1] * (chosen.dim() - 1))
+            decisions.append((chosen.reshape(-1), episodes.expand_as(chosen).reshape(-1)))
         ent = ent - torch.where(free, (lsm.exp() * lsm.clamp(min=-30)).sum(-1), 0.0).sum(-1)
     if trace.n_steps == 0:
         return logp, ent
