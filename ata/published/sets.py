@@ -389,8 +389,8 @@ def read_published(spec: str | Path) -> tuple[Results, dict[str, Any], Path]:
     with tempfile.TemporaryDirectory() as tmp:
         (Path(tmp) / "results.csv").write_bytes(gzip.decompress(data))
         results = read_results(Path(tmp))
-    results.origin = [o.replace(str(Path(tmp) / "results.csv"), f"{shown(folder)}/{ROWS}")
-                      for o in results.origin]
+    where, named = str(Path(tmp) / "results.csv"), f"{shown(folder)}/{ROWS}"
+    results.origin = [o.replace(where, named) for o in results.origin]
     return results, manifest, folder
 
 

@@ -114,10 +114,23 @@ class Results:
     pairs: list[tuple[str, str]] = field(default_factory=list)
     origin: list[str] = field(default_factory=list)
     """Where each row was read ("FILE line N"), for messages about one value."""
+    _index: tuple = field(default=(), repr=False, compare=False)
+    """The rows of each (method, setting, level), with the three columns they were read from:
+    built at the first `select` and again whenever one of those columns is replaced."""
 
     def select(self, method: str, setting: str, level: str) -> np.ndarray:
         c = self.columns
-        return (c["method"] == method) & (c["setting"] == setting) & (c["uncertainty"] == level)
+        keys = (c["method"], c["setting"], c["uncertainty"])
+        if not self._index or any(a is not b for a, b in zip(self._index[0], keys)):
+            groups: dict[tuple, list[int]] = {}
+            for i, key in enumerate(zip(*(k.tolist() for k in keys))):
+                groups.setdefault(key, []).append(i)
+            self._index = (keys, {k: np.asarray(v) for k, v in groups.items()})
+        mask = np.zeros(len(keys[0]), dtype=bool)
+        rows = self._index[1].get((method, setting, level))
+        if rows is not None:
+            mask[rows] = True
+        return mask
 
     def is_reference(self, method: str) -> bool:
         """Whether the method's rows come from a mission with a reference reconstructor (the
