@@ -58,6 +58,10 @@ class TrainingSettings:
                             "non-idle action (discourages needless changes)")
     human_load_cap: float = param(0.65, min=0.0, max=0.99, help="training: utilisation above "
                                   "which a human counts as overloaded")
+    average: float = param(0.0, min=0.0, max=0.999999, help="training: weight averaging: 0 "
+                           "off; else after every gradient step the averaged agents move "
+                           "(1 - average) of the way to the online ones, each validation plays "
+                           "both, and best.pt keeps whichever scored higher")
     eval_every: int = param(50, min=1, help="training: held-out validation every N steps")
     eval_scenarios: int = param(64, min=1, help="training: validation scenarios")
     select: str = param("drawn", choices=("drawn", "expected"), help="training: the "

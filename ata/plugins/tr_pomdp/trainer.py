@@ -36,7 +36,7 @@ from ata.training import (VALIDATION_SEED_OFFSET, CheckpointError, Phase, PhaseL
                           read_checkpoint)
 
 LOG_FIELDS = ["phase", "step", "episodes", "episodes_per_s", "loss", "mean_score", "epsilon",
-              "eval_score", "eval_expected", "wall_s"]
+              "eval_score", "eval_expected", "eval_avg_score", "eval_avg_expected", "wall_s"]
 KINDS = ("robot", "human")
 
 
@@ -87,6 +87,7 @@ class AgentLearner:
         self.nets = dqn.AgentNets(self.cfg)
         self.target = copy.deepcopy(self.nets)
         self.opt = torch.optim.Adam(self.nets.parameters(), lr=t.lr)
+        self.avg = copy.deepcopy(self.nets) if t.average > 0 else None   # averaged weights
         self.replay = {"robot": Replay(t.buffer, self.cfg.robot_dim, self.cfg.robot_actions),
                        "human": Replay(t.buffer, self.cfg.human_dim, self.cfg.human_actions)}
         self.updates = 0
@@ -97,6 +98,8 @@ class AgentLearner:
                "agents_optimizer": self.opt.state_dict(), "agents_updates": self.updates}
         if replay:
             out["replay"] = {k: r.state() for k, r in self.replay.items()}
+        if self.avg is not None:
+            out["agents_avg"] = self.avg.state_dict()
         return out
 
     def load(self, data: dict[str, Any], path: Any) -> None:
@@ -105,6 +108,8 @@ class AgentLearner:
         self.target.load_state_dict(data["agents_target"])
         self.opt.load_state_dict(data["agents_optimizer"])
         self.updates = int(data["agents_updates"])
+        if self.avg is not None:     # best.pt keeps no average: it starts from its agents
+            self.avg.load_state_dict(data.get("agents_avg", self.nets.state_dict()))
         for k, r in self.replay.items():
             if "replay" in data:
                 r.load(data["replay"][k])
@@ -163,6 +168,10 @@ class AgentLearner:
         self.updates += 1
         if self.updates % t.target_sync == 0:
             self.target.load_state_dict(self.nets.state_dict())
+        if self.avg is not None:
+            with torch.no_grad():
+                for a, p in zip(self.avg.parameters(), self.nets.parameters()):
+                    a.lerp_(p, 1.0 - t.average)
         return float(loss.item())
 
 
@@ -190,6 +199,7 @@ class TRPOMDPTrainer:
         self.gen = torch.Generator().manual_seed(settings.seed + 1)
         self.train_mission = mission.replace(seed=settings.seed)
         self.loop = PhaseLoop(["dqn"], self.checkpoint)
+        self.best_source = "online"      # the agents the last validation scored higher
 
     # -- the trainer interface ------------------------------------------------------------------
     @property
@@ -232,6 +242,11 @@ class TRPOMDPTrainer:
                 "trainer": getattr(self, "component_name", "tr_pomdp"),
                 "scenario_ranges": [list(r) for r in self.scenario_ranges()]}
         data.update(self.agents.state(replay=name == "checkpoint.pt"))
+        if name == "best.pt" and self.best_source == "average":
+            data["agents"] = self.agents.avg.state_dict()
+        if name == "best.pt":
+            data.pop("agents_avg", None)
+            data["agents_source"] = self.best_source
         return data
 
     def load(self, path, data: dict[str, Any] | None = None) -> None:
@@ -247,10 +262,11 @@ class TRPOMDPTrainer:
 
     # -- the phase ---------------------------------------------------------------------------------
     def rollout(self, ids: np.ndarray, mission, epsilon: float,
-                log: list[Transition] | None = None):
-        """Episodes with the agents reallocating every epoch after the mission's (frozen)
-        initial allocation."""
-        policy = TRPOMDPPolicy(TRPOMDPPolicy.Settings(), mission, nets=self.agents.nets,
+                log: list[Transition] | None = None, nets: Any = None):
+        """Episodes with the agents (the online ones unless `nets`) reallocating every epoch
+        after the mission's (frozen) initial allocation."""
+        nets = self.agents.nets if nets is None else nets
+        policy = TRPOMDPPolicy(TRPOMDPPolicy.Settings(), mission, nets=nets,
                                log=log, epsilon=epsilon)
         overrides = {"condition": build_component(self.registry, mission, "condition",
                                                   "always"),
@@ -273,10 +289,22 @@ class TRPOMDPTrainer:
 
     def validate(self) -> tuple[float, dict[str, str]]:
         """Mean team performance on held-out validation scenarios, greedy agents: the points
-        drawn and in expectation; best.pt follows the one `select` names."""
+        drawn and in expectation; best.pt follows the one `select` names. With weight
+        averaging the averaged agents play the same scenarios, and the higher of the two
+        scores is the check's (best.pt then holds those agents)."""
         mission = self.mission.replace(seed=self.t.seed + VALIDATION_SEED_OFFSET)
-        record = self.rollout(np.arange(self.t.eval_scenarios), mission, 0.0)
-        drawn = float(record.total.mean())
-        expected = float(record.r_expected.sum(1).mean())
-        return (expected if self.t.select == "expected" else drawn,
-                {"eval_score": f"{drawn:.2f}", "eval_expected": f"{expected:.2f}"})
+        ids = np.arange(self.t.eval_scenarios)
+        candidates = [("online", None, "eval")]
+        if self.agents.avg is not None:
+            candidates.append(("average", self.agents.avg, "eval_avg"))
+        best, columns = -np.inf, {}
+        for source, nets, prefix in candidates:
+            record = self.rollout(ids, mission, 0.0, nets=nets)
+            drawn = float(record.total.mean())
+            expected = float(record.r_expected.sum(1).mean())
+            columns.update({f"{prefix}_score": f"{drawn:.2f}",
+                            f"{prefix}_expected": f"{expected:.2f}"})
+            score = expected if self.t.select == "expected" else drawn
+            if score > best:
+                best, self.best_source = score, source
+        return best, columns
