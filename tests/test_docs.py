@@ -65,7 +65,7 @@ def test_example_missions_validate():
 
 # -- experiments/: every published number has a folder with its commands ------------------------
 EXPERIMENTS = ROOT / "experiments"
-OUTPUT = re.compile(r"(?:-o|--out)\s+(runs/[\w.-]+)")
+OUTPUT = re.compile(r"(?:-o|--out|>)\s+(runs/[\w.-]+)")
 RUNS_PATH = re.compile(r"(?<![\w/.-])(runs/[\w.-]+)")
 
 
